@@ -1,0 +1,22 @@
+"""jaxcontact: a JAX-accelerated, differentiable contact solver.
+
+A rigid indenter against a linear (visco)elastic half-space, by influence
+coefficients, DC-FFT and conjugate-gradient contact solvers.
+"""
+
+from ._analytic import Hertz as Hertz
+from ._grid import Grid as Grid
+from ._indenter import (
+    AbstractIndenter as AbstractIndenter,
+    Sphere as Sphere,
+    Surface as Surface,
+)
+from ._influence import influence_coefficients as influence_coefficients
+from ._material.base import AbstractMaterial as AbstractMaterial
+from ._material.elastic import Elastic as Elastic
+from ._operator import HalfSpace as HalfSpace
+from ._solve_normal import NormalSolution as NormalSolution, solve_normal as solve_normal
+from ._solver.normal import PolonskyKeer as PolonskyKeer
+
+
+__version__ = "0.1.0"

@@ -1,0 +1,213 @@
+"""The half-space compliance operator: surface tractions -> surface displacements.
+
+`HalfSpace` holds the Fourier spectra of the influence coefficients of `_influence`
+for one grid, computed once at construction, and applies them by FFT:
+
+- non-periodic grids (DC-FFT, Liu, Wang & Liu 2000): tractions are zero-padded to
+  `2nx x 2ny`, the kernel is laid out in wrap-around order, and the result is cropped
+  back to `nx x ny`. The transforms are pruned: the forward transform runs its row FFTs
+  on the `nx` non-zero rows only, and the inverse transform runs its column FFTs on the
+  `nx` rows that are kept. This is exactly the padded linear convolution, at about half
+  the cost of `rfft2(s=(2nx, 2ny))` / `irfft2` at large `n`.
+- periodic grids: the spectra are the Fourier transforms of the continuous Boussinesq
+  and Cerruti kernels, multiplied by the cell shape factor `sinc(kx dx/2) sinc(ky dy/2)`
+  and summed over aliases; the mean (k = 0) displacement is set to zero (it is
+  undetermined for a periodic half-space and is absorbed by the rigid-body approach).
+
+The operator is for UNIT shear modulus and is independent of Poisson's ratio: the
+spectra are stored as Poisson-independent parts and combined with `poisson` on the
+fly (`_influence.combine`). Even kernels (xx, yy, zz, xy) have real spectra and odd
+kernels (xz, yz) purely imaginary ones, so only real arrays are stored. Blocks that the
+`coupling` mode does not need are neither stored nor applied.
+"""
+
+from typing import Literal
+
+import equinox as eqx
+import jax.numpy as jnp
+from jaxtyping import Array, Float
+
+from . import _influence
+from ._grid import Grid
+
+
+Coupling = Literal["normal", "none", "x", "full"]
+_COUPLINGS = ("normal", "none", "x", "full")
+
+
+def _wraparound_offsets(n: int, d, dtype):
+    """Offsets `i * d` for `i = 0..n-1, (unused), -(n-1)..-1`, length `2n`, and a mask."""
+    i = jnp.arange(2 * n)
+    i = jnp.where(i < n, i, i - 2 * n)
+    return i.astype(dtype) * d, i != -n
+
+
+def _dc_spectra(grid: Grid, names):
+    """rfft2 of the wrap-around padded real-space coefficients, one per `names`."""
+    nx, ny = grid.shape
+    dx, dy = grid.spacing
+    ox, mx = _wraparound_offsets(nx, dx, dx.dtype)
+    oy, my = _wraparound_offsets(ny, dy, dy.dtype)
+    x, y = jnp.meshgrid(ox, oy, indexing="ij")
+    keep = mx[:, None] & my[None, :]
+    base = dict(zip(("s1", "s2", "sxy", "szx", "szy"), _influence.base_integrals(x, y, dx, dy)))
+    out = {}
+    for name in names:
+        spec = jnp.fft.rfft2(jnp.where(keep, base[name], 0.0))
+        # Even kernels have real spectra, odd kernels (szx, szy) imaginary ones.
+        out[name] = spec.imag if name in ("szx", "szy") else spec.real
+    return out
+
+
+def _periodic_spectra(grid: Grid, names, aliases: int = 6):
+    """Continuous-kernel spectra times the cell shape factor, summed over aliases."""
+    nx, ny = grid.shape
+    dx, dy = grid.spacing
+    dtype = dx.dtype
+    kx0 = 2 * jnp.pi * jnp.fft.fftfreq(nx, 1.0).astype(dtype) / dx
+    ky0 = 2 * jnp.pi * jnp.fft.rfftfreq(ny, 1.0).astype(dtype) / dy
+    kx0, ky0 = jnp.meshgrid(kx0, ky0, indexing="ij")
+    out = {name: jnp.zeros_like(kx0) for name in names}
+    for ax in range(-aliases, aliases + 1):
+        for ay in range(-aliases, aliases + 1):
+            kx = kx0 + 2 * jnp.pi * ax / dx
+            ky = ky0 + 2 * jnp.pi * ay / dy
+            k2 = kx * kx + ky * ky
+            zero = k2 == 0
+            k2 = jnp.where(zero, 1.0, k2)
+            k = jnp.sqrt(k2)
+            shape = jnp.sinc(kx * dx / (2 * jnp.pi)) * jnp.sinc(ky * dy / (2 * jnp.pi))
+            # Fourier transforms (f^(k) = ∫ f e^{-ik.x}) of the kernels / (2 pi):
+            #   1/(2pi r) -> 1/k; x^2/(2pi r^3) -> ky^2/k^3; xy/(2pi r^3) -> -kx ky/k^3;
+            #   x/(2pi r^2) -> -i kx/k^2 (we store the imaginary part).
+            terms = {
+                # s1 + s2 = 1/k and s2 = ky^2/k^3, so s1 = kx^2/k^3.
+                "s1": kx * kx / (k2 * k),
+                "s2": ky * ky / (k2 * k),
+                "sxy": -kx * ky / (k2 * k),
+                "szx": -kx / k2,
+                "szy": -ky / k2,
+            }
+            for name in names:
+                out[name] = out[name] + jnp.where(zero, 0.0, terms[name] * shape)
+    # Odd kernels: the Nyquist entries of a real odd sequence's DFT vanish.
+    if "szx" in out and nx % 2 == 0:
+        out["szx"] = out["szx"].at[nx // 2, :].set(0.0)
+    if "szy" in out and ny % 2 == 0:
+        out["szy"] = out["szy"].at[:, -1].set(0.0)
+    return out
+
+
+def _needed(coupling: str, tangential_y: bool):
+    if coupling == "normal":
+        return ("zz",)
+    names = ["s1", "s2"]
+    if tangential_y:
+        names.append("sxy")
+    if coupling in ("x", "full"):
+        names.append("szx")
+    if coupling == "full":
+        names.append("szy")
+    return tuple(names)
+
+
+class HalfSpace(eqx.Module):
+    """FFT influence operator of an elastic half-space with unit shear modulus.
+
+    **Arguments:**
+
+    - `grid`: the `jc.Grid`.
+    - `coupling`: which blocks to build. `"normal"`: pressure -> normal displacement
+      only. `"none"`: normal and tangential blocks, no normal-tangential coupling.
+      `"x"`: adds the coupling between pressure and `q_x`. `"full"`: all nine blocks.
+    - `tangential_y`: whether `q_y` and `u_y` are needed (the xy and yy blocks). Always
+      `False` for `"normal"` and for `"x"` (semi-coupled: `q_y = 0`). Default `True`.
+
+    Applying it costs one forward and one inverse FFT of the (padded) grid per traction
+    and per displacement component in use.
+    """
+
+    grid: Grid
+    coupling: str = eqx.field(static=True)
+    tangential_y: bool = eqx.field(static=True)
+    spectra: dict[str, Float[Array, "kx ky"]]
+
+    def __init__(self, grid: Grid, coupling: Coupling = "normal", tangential_y: bool = True):
+        if coupling not in _COUPLINGS:
+            raise ValueError(f"coupling must be one of {_COUPLINGS}, got {coupling!r}")
+        self.grid = grid
+        self.coupling = coupling
+        self.tangential_y = bool(tangential_y) and coupling not in ("normal", "x")
+        names = _needed(coupling, self.tangential_y)
+        raw_names = ("s1", "s2") if names == ("zz",) else names
+        make = _periodic_spectra if grid.periodic else _dc_spectra
+        spectra = make(grid, raw_names)
+        if names == ("zz",):
+            spectra = {"zz": spectra["s1"] + spectra["s2"]}
+        self.spectra = spectra
+
+    # -- transforms ------------------------------------------------------------------
+
+    def forward(self, field: Float[Array, "... nx ny"]):
+        """Spectrum of a real field (padded and pruned for non-periodic grids)."""
+        nx, ny = self.grid.shape
+        if self.grid.periodic:
+            return jnp.fft.rfft2(field)
+        spec = jnp.fft.rfft(field, n=2 * ny, axis=-1)
+        return jnp.fft.fft(spec, n=2 * nx, axis=-2)
+
+    def inverse(self, spec) -> Float[Array, "... nx ny"]:
+        """Inverse of `forward`, cropped to the grid."""
+        nx, ny = self.grid.shape
+        if self.grid.periodic:
+            return jnp.fft.irfft2(spec, s=(nx, ny))
+        field = jnp.fft.ifft(spec, axis=-2)[..., :nx, :]
+        return jnp.fft.irfft(field, n=2 * ny, axis=-1)[..., :ny]
+
+    # -- application -----------------------------------------------------------------
+
+    def normal_spectrum(self, poisson):
+        """Real spectrum of the zz block for this Poisson's ratio."""
+        if "zz" in self.spectra:
+            return (1 - poisson) * self.spectra["zz"]
+        return (1 - poisson) * (self.spectra["s1"] + self.spectra["s2"])
+
+    def apply_normal(self, pressure: Float[Array, "nx ny"], poisson) -> Float[Array, "nx ny"]:
+        """Normal displacement `u_z` [length] due to `pressure`, unit shear modulus."""
+        return self.inverse(self.forward(pressure) * self.normal_spectrum(poisson))
+
+    def apply(self, traction: Float[Array, "3 nx ny"], poisson) -> Float[Array, "3 nx ny"]:
+        """Displacements `(u_x, u_y, u_z)` due to tractions `(q_x, q_y, p)`, unit modulus.
+
+        Only the blocks of this operator's `coupling` are applied; components whose
+        blocks are absent come out as zeros (e.g. `u_y` when `tangential_y=False`).
+        """
+        if self.coupling == "normal":
+            uz = self.apply_normal(traction[2], poisson)
+            return jnp.stack([jnp.zeros_like(uz), jnp.zeros_like(uz), uz])
+        s = self.spectra
+        nu = poisson
+        c = 0.5 * (1 - 2 * nu)
+        qx_hat = self.forward(traction[0])
+        p_hat = self.forward(traction[2])
+        ux_hat = ((1 - nu) * s["s1"] + s["s2"]) * qx_hat
+        uz_hat = (1 - nu) * (s["s1"] + s["s2"]) * p_hat
+        if self.coupling in ("x", "full"):
+            # zx = c * szx is odd (spectrum i * c * szx); xz = -zx.
+            ux_hat = ux_hat - 1j * c * s["szx"] * p_hat
+            uz_hat = uz_hat + 1j * c * s["szx"] * qx_hat
+        if self.tangential_y:
+            qy_hat = self.forward(traction[1])
+            ux_hat = ux_hat + nu * s["sxy"] * qy_hat
+            uy_hat = nu * s["sxy"] * qx_hat + (s["s1"] + (1 - nu) * s["s2"]) * qy_hat
+            if self.coupling == "full":
+                uy_hat = uy_hat - 1j * c * s["szy"] * p_hat
+                uz_hat = uz_hat + 1j * c * s["szy"] * qy_hat
+            uy = self.inverse(uy_hat)
+        else:
+            uy = None
+        ux = self.inverse(ux_hat)
+        uz = self.inverse(uz_hat)
+        if uy is None:
+            uy = jnp.zeros_like(ux)
+        return jnp.stack([ux, uy, uz])

@@ -1,0 +1,138 @@
+"""`jc.solve_normal`: frictionless normal indentation of an elastic half-space."""
+
+import equinox as eqx
+import jax.numpy as jnp
+from jaxtyping import Array, Bool, Float, Int
+
+from . import _validate
+from ._grid import Grid
+from ._indenter import AbstractIndenter, as_indenter
+from ._material.base import AbstractMaterial
+from ._operator import HalfSpace
+from ._solver.normal import PolonskyKeer, polonsky_keer
+
+
+class NormalSolution(eqx.Module):
+    """Result of `jc.solve_normal`.
+
+    - `pressure`: `(nx, ny)` contact pressure `p >= 0` [stress].
+    - `gap`: `(nx, ny)` gap `h0 + u_z - delta` after deformation [length] (`~0` in
+      contact, `>= 0` outside).
+    - `contact`: `(nx, ny)` boolean mask, `p > 0`.
+    - `approach`: rigid-body approach `delta` of the indenter [length].
+    - `normal_force`: total load `W = A sum(p)` [force].
+    - `displacement`: `(nx, ny)` normal surface displacement `u_z` [length].
+    - `iterations`, `residual`, `converged`: solver statistics (see `jc.PolonskyKeer`).
+    - `applications`: number of operator applications (padded FFT convolutions) used.
+    """
+
+    pressure: Float[Array, "nx ny"]
+    gap: Float[Array, "nx ny"]
+    contact: Bool[Array, "nx ny"]
+    approach: Float[Array, ""]
+    normal_force: Float[Array, ""]
+    displacement: Float[Array, "nx ny"]
+    iterations: Int[Array, ""]
+    residual: Float[Array, ""]
+    converged: Bool[Array, ""]
+    applications: Int[Array, ""]
+
+
+@eqx.filter_jit
+def _solve(operator, h, compliance, poisson, target, load_control, solver):
+    grid = operator.grid
+    spectrum = compliance * operator.normal_spectrum(poisson)
+
+    def apply_fn(p):
+        return operator.inverse(operator.forward(p) * spectrum)
+
+    state = polonsky_keer(
+        apply_fn,
+        h,
+        target,
+        grid.cell_area,
+        load_control=load_control,
+        rtol=solver.tolerance(h.dtype),
+        max_steps=solver.max_steps,
+        resync_every=solver.resync_every,
+    )
+    return NormalSolution(
+        pressure=state.pressure,
+        gap=state.gap,
+        contact=state.pressure > 0,
+        approach=state.approach,
+        normal_force=grid.cell_area * jnp.sum(state.pressure),
+        displacement=state.displacement,
+        iterations=state.iterations,
+        residual=state.residual,
+        converged=state.converged,
+        applications=state.applications,
+    )
+
+
+def solve_normal(
+    grid: Grid,
+    indenter: AbstractIndenter | Float[Array, "nx ny"],
+    material: AbstractMaterial,
+    *,
+    force=None,
+    approach=None,
+    solver: PolonskyKeer = PolonskyKeer(),
+    operator: HalfSpace | None = None,
+) -> NormalSolution:
+    """Frictionless indentation of a half-space by a rigid indenter (one elastic step).
+
+    **Main arguments:**
+
+    - `grid`: the `jc.Grid`.
+    - `indenter`: a `jc.Sphere`, a `jc.Surface`, or an `(nx, ny)` array of initial gaps
+      [length].
+    - `material`: the half-space. A viscoelastic material responds with its
+      instantaneous compliance `J(0)` (a load applied at once).
+    - `force`: the normal load `W >= 0` [force] (load control), or
+    - `approach`: the rigid-body approach `delta` [length] (displacement control).
+      Give exactly one.
+
+    **Other arguments:**
+
+    - `solver`: a `jc.PolonskyKeer` (tolerance, iteration bound).
+    - `operator`: a prebuilt `jc.HalfSpace(grid)`, to reuse its kernel spectra across
+      calls (built here if omitted).
+
+    **Returns:** a `jc.NormalSolution`. The solve is jitted: a second call with new
+    values of the same shapes reuses the compiled program.
+    """
+    if (force is None) == (approach is None):
+        raise ValueError("give exactly one of force= (load control) or approach= "
+                         f"(displacement control); got force={force!r}, approach={approach!r}")
+    if not isinstance(material, AbstractMaterial):
+        raise TypeError(f"material must be a jaxcontact material, got {material!r}")
+    if not isinstance(solver, PolonskyKeer):
+        raise TypeError(f"solver must be a jc.PolonskyKeer, got {solver!r}")
+    indenter = as_indenter(indenter)
+    h = indenter.gap(grid)
+    if h.shape != grid.shape:
+        raise ValueError(f"the indenter's gap has shape {h.shape}, the grid is {grid.shape}")
+    if operator is None:
+        operator = HalfSpace(grid, "normal")
+    elif operator.grid.shape != grid.shape or operator.grid.periodic != grid.periodic:
+        raise ValueError("operator was built for a different grid")
+    if force is not None:
+        target = _validate.non_negative("force", force)
+        load_control = True
+    else:
+        target = _validate.finite("approach", approach)
+        load_control = False
+    if target.shape != ():
+        raise ValueError(f"force/approach must be a scalar, got shape {target.shape}")
+    dtype = jnp.result_type(h.dtype, grid.size.dtype)
+    compliance = material.instantaneous_compliance
+    return _solve(
+        operator,
+        h.astype(dtype),
+        compliance.astype(dtype),
+        material.poisson.astype(dtype),
+        target.astype(dtype),
+        load_control,
+        solver,
+    )

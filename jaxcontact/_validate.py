@@ -1,0 +1,69 @@
+"""Argument checks that work on concrete values and on tracers alike.
+
+Concrete values are checked at construction with a `ValueError` that names the
+argument and the bad value. Traced values (inside `jit`/`vmap`/`grad`) cannot be
+inspected in Python, so they are checked with `eqx.error_if`, which raises at run
+time (see `EQX_ON_ERROR`).
+"""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import equinox as eqx
+
+
+def is_traced(x) -> bool:
+    """True if any leaf of `x` is a JAX tracer (we are inside a transformation)."""
+    return any(isinstance(leaf, jax.core.Tracer) for leaf in jax.tree_util.tree_leaves(x))
+
+
+def as_float_array(name: str, value, dtype=None) -> jax.Array:
+    """Convert `value` to a floating JAX array, rejecting complex and non-numeric input."""
+    if isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name} must be a real number, got the boolean {value!r}")
+    if not is_traced(value):
+        try:
+            arr = np.asarray(value)
+        except Exception as exc:  # pragma: no cover - exotic input
+            raise TypeError(f"{name} must be a real number or array, got {value!r}") from exc
+        if arr.dtype == object or arr.dtype.kind not in "biuf":
+            raise TypeError(f"{name} must be a real number or array, got {value!r}")
+    if dtype is None:
+        dtype = jnp.result_type(float)
+        if hasattr(value, "dtype") and jnp.issubdtype(value.dtype, jnp.floating):
+            dtype = value.dtype
+    return jnp.asarray(value, dtype=dtype)
+
+
+def _check(name: str, value: jax.Array, bad, what: str) -> jax.Array:
+    """Raise (concrete) or attach a runtime error (traced) where `bad(value)` holds."""
+    if is_traced(value):
+        return eqx.error_if(value, bad(value), f"{name} must be {what}")
+    bad_mask = np.asarray(bad(value))
+    if bad_mask.any():
+        shown = np.asarray(value)
+        shown = shown.item() if shown.size == 1 else shown
+        raise ValueError(f"{name} must be {what}, got {shown!r}")
+    return value
+
+
+def finite(name: str, value) -> jax.Array:
+    value = as_float_array(name, value)
+    return _check(name, value, lambda v: ~jnp.isfinite(v), "finite (no NaN or inf)")
+
+
+def positive(name: str, value) -> jax.Array:
+    value = as_float_array(name, value)
+    return _check(name, value, lambda v: ~(jnp.isfinite(v) & (v > 0)), "finite and > 0")
+
+
+def non_negative(name: str, value) -> jax.Array:
+    value = as_float_array(name, value)
+    return _check(name, value, lambda v: ~(jnp.isfinite(v) & (v >= 0)), "finite and >= 0")
+
+
+def poisson_ratio(name: str, value) -> jax.Array:
+    value = as_float_array(name, value)
+    return _check(
+        name, value, lambda v: ~((v > -1) & (v <= 0.5)), "in the interval (-1, 0.5]"
+    )
