@@ -1,0 +1,6 @@
+import jax
+
+
+# Validation runs in float64 (float32 tests convert explicitly).
+jax.config.update("jax_enable_x64", True)
+jax.config.update("jax_numpy_rank_promotion", "raise")
