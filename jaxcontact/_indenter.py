@@ -36,6 +36,8 @@ class Sphere(AbstractIndenter):
 
     def __init__(self, radius, centre=(0.0, 0.0)):
         self.radius = _validate.positive("radius", radius)
+        if not hasattr(centre, "dtype"):
+            centre = jnp.asarray(centre, dtype=self.radius.dtype)
         centre = _validate.finite("centre", centre)
         if centre.shape != (2,):
             raise ValueError(f"centre must be (x_c, y_c), got shape {centre.shape}")

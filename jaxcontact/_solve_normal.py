@@ -9,7 +9,7 @@ from ._grid import Grid
 from ._indenter import AbstractIndenter, as_indenter
 from ._material.base import AbstractMaterial
 from ._operator import HalfSpace
-from ._solver.normal import PolonskyKeer, polonsky_keer
+from ._solver.normal import PolonskyKeer, hertzian_guess, polonsky_keer
 
 
 class NormalSolution(eqx.Module):
@@ -46,6 +46,11 @@ def _solve(operator, h, compliance, poisson, target, load_control, solver):
     def apply_fn(p):
         return operator.inverse(operator.forward(p) * spectrum)
 
+    p0 = None
+    if load_control:
+        effective_modulus = 2 / (compliance * (1 - poisson))
+        p0 = hertzian_guess(h, target, effective_modulus, grid.cell_area)
+
     state = polonsky_keer(
         apply_fn,
         h,
@@ -55,6 +60,7 @@ def _solve(operator, h, compliance, poisson, target, load_control, solver):
         rtol=solver.tolerance(h.dtype),
         max_steps=solver.max_steps,
         resync_every=solver.resync_every,
+        p0=p0,
     )
     return NormalSolution(
         pressure=state.pressure,

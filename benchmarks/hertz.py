@@ -1,0 +1,514 @@
+"""Hertz benchmark: run time against error of `jc.solve_normal`.
+
+A rigid sphere (R = 10 mm) pressed with W = 0.15 N on an elastic half-space
+(G = 1 MPa, nu = 0.3), SI units, on a non-periodic square domain of side 4a (a is
+the Hertz contact radius), at n x n cells for several n, in float64 and/or float32.
+
+For each (n, dtype) it records:
+
+- the operator build time, the compile time (first call minus a timed second call)
+  and the solve time after compilation (median of `--repeats` calls with slightly
+  different loads, the operator built once and passed with `operator=`);
+- iterations, operator applications, residual and convergence flag;
+- the time per CG iteration and per operator application, divided by the time of
+  ONE padded FFT convolution measured in the same process, (a) the naive
+  `irfft2(rfft2(p, s=(2n, 2n)) * k, s=(2n, 2n))[:n, :n]` and (b) the library's pruned
+  transform `op.inverse(op.forward(p) * spectrum)`, each timed per iteration of a
+  jitted `lax.fori_loop`;
+- errors against Hertz theory (`jc.Hertz`): peak pressure, approach, contact radius
+  (from the contact area, in cells) and the largest pressure-profile error / p0.
+
+Usage::
+
+    python benchmarks/hertz.py                      # n = 64 .. 1024, float64
+    python benchmarks/hertz.py --quick --plot       # n = 64, 128, 256 (< 1 min)
+    python benchmarks/hertz.py --dtypes float64 float32 --rtol 1e-10
+
+Results go to `benchmarks/results/hertz.json` (`--out`); `--plot` also writes a PNG
+(time against peak-pressure error, log-log) next to it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import math
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import jax
+
+# x64 is enabled for the whole script; float32 runs build float32 inputs.
+jax.config.update("jax_enable_x64", True)
+
+import jax.numpy as jnp  # noqa: E402
+import numpy as np  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+# Benchmark the checkout this script lives in (the package need not be installed).
+sys.path.insert(0, str(ROOT))
+
+import jaxcontact as jc  # noqa: E402
+
+# ---- The problem ------------------------------------------------------------------
+
+RADIUS = 10e-3  # m
+FORCE = 0.15  # N
+SHEAR_MODULUS = 1e6  # Pa
+POISSON = 0.3
+DOMAIN_OVER_A = 4.0  # side of the square domain / Hertz contact radius
+
+DEFAULT_SIZES = (64, 128, 256, 512, 1024)
+QUICK_SIZES = (64, 128, 256)
+DTYPES = {"float64": jnp.float64, "float32": jnp.float32}
+
+
+# ---- Machine info -----------------------------------------------------------------
+
+
+def _cpu_model() -> str:
+    name = platform.processor()
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.lower().startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return name
+
+
+def _git(*args) -> str | None:
+    try:
+        out = subprocess.run(
+            ["git", "-C", str(ROOT), *args], capture_output=True, text=True, timeout=10
+        )
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return out.stdout.strip() if out.returncode == 0 else None
+
+
+def machine_info() -> dict:
+    dev = jax.devices()[0]
+    try:
+        usable = len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        usable = os.cpu_count()
+    return {
+        "platform": platform.platform(),
+        "processor": _cpu_model(),
+        "cpu_count": os.cpu_count(),
+        "cpu_count_usable": usable,
+        "python": platform.python_version(),
+        "jax": jax.__version__,
+        "jaxlib": getattr(jax.lib, "__version__", None) or _jaxlib_version(),
+        "numpy": np.__version__,
+        "device": str(dev),
+        "device_kind": getattr(dev, "device_kind", None),
+        "backend": jax.default_backend(),
+    }
+
+
+def _jaxlib_version():
+    try:
+        import jaxlib
+
+        return jaxlib.__version__
+    except Exception:  # pragma: no cover
+        return None
+
+
+def library_info() -> dict:
+    dirty = _git("status", "--porcelain", "--", "jaxcontact")
+    return {
+        "jaxcontact": jc.__version__,
+        "path": str(Path(jc.__file__).resolve().parent),
+        "git_commit": _git("rev-parse", "HEAD"),
+        "jaxcontact_dirty": None if dirty is None else bool(dirty),
+    }
+
+
+# ---- Timing helpers ---------------------------------------------------------------
+
+
+def _timed(fn):
+    t = time.perf_counter()
+    out = fn()
+    return out, time.perf_counter() - t
+
+
+def time_loop(step, x0, repeats: int, target_s: float = 0.1) -> float:
+    """Seconds per iteration of `x <- step(x)` run inside a jitted `fori_loop`."""
+
+    @jax.jit
+    def loop(x, count):
+        return jax.lax.fori_loop(0, count, lambda i, y: step(y), x)
+
+    loop(x0, 1).block_until_ready()  # compile
+    _, t = _timed(lambda: loop(x0, 4).block_until_ready())
+    count = int(min(2000, max(3, math.ceil(target_s / max(t / 4, 1e-7)))))
+    times = []
+    for _ in range(repeats):
+        _, t = _timed(lambda: loop(x0, count).block_until_ready())
+        times.append(t / count)
+    return statistics.median(times)
+
+
+def convolution_times(op, spectrum, n: int, dtype, repeats: int) -> dict:
+    """Time of one padded FFT convolution: naive rfft2/irfft2 and the library's own."""
+    # Scale the kernel so that max|k| = 1/2: x <- conv(x) + x0 stays bounded (no
+    # overflow or denormals however many iterations run). The extra add is O(n^2).
+    k = (0.5 / jnp.max(jnp.abs(spectrum))) * spectrum
+    x, y = np.meshgrid(np.linspace(-1, 1, n), np.linspace(-1, 1, n), indexing="ij")
+    x0 = jnp.asarray(np.sqrt(np.maximum(1 - 4 * (x * x + y * y), 0)), dtype=dtype)
+
+    def naive(p):
+        q = jnp.fft.irfft2(jnp.fft.rfft2(p, s=(2 * n, 2 * n)) * k, s=(2 * n, 2 * n))
+        return q[:n, :n] + x0
+
+    def pruned(p):
+        return op.inverse(op.forward(p) * k) + x0
+
+    return {
+        "naive": time_loop(naive, x0, repeats),
+        "pruned": time_loop(pruned, x0, repeats),
+    }
+
+
+# ---- Errors against Hertz ---------------------------------------------------------
+
+
+def hertz_errors(sol, n: int, size: float, hz: jc.Hertz) -> dict:
+    a = float(hz.contact_radius)
+    p0 = float(hz.peak_pressure)
+    delta = float(hz.approach)
+    dx = size / n
+    cell_area = dx * dx
+    p = np.asarray(sol.pressure, dtype=np.float64)
+    c = np.arange(n) - (n - 1) / 2
+    xx, yy = np.meshgrid(c * dx, c * dx, indexing="ij")
+    r = np.hypot(xx, yy)
+    exact = p0 * np.sqrt(np.maximum(1 - (r / a) ** 2, 0.0))
+    n_contact = int(np.count_nonzero(np.asarray(sol.contact)))
+    a_num = math.sqrt(n_contact * cell_area / math.pi)
+    return {
+        "peak_pressure_rel": float(p.max() / p0 - 1),
+        "approach_rel": float(float(sol.approach) / delta - 1),
+        "contact_radius_cells": (a_num - a) / dx,
+        "contact_radius_rel": a_num / a - 1,
+        "profile_max_over_p0": float(np.max(np.abs(p - exact)) / p0),
+        "force_rel": float(float(sol.normal_force) / hz.force - 1),
+        "contact_cells": n_contact,
+        "contact_radius_numeric": a_num,
+    }
+
+
+# ---- One case ---------------------------------------------------------------------
+
+
+def build(n: int, dtype, notes: list[str]):
+    """Grid, material, indenter, all with `dtype` values (x64 is on)."""
+    hz = jc.Hertz(RADIUS, FORCE, SHEAR_MODULUS, POISSON)
+    size = DOMAIN_OVER_A * float(hz.contact_radius)
+    grid = jc.Grid((n, n), jnp.asarray(size, dtype))
+    material = jc.Elastic(jnp.asarray(SHEAR_MODULUS, dtype), jnp.asarray(POISSON, dtype))
+    sphere = jc.Sphere(jnp.asarray(RADIUS, dtype))
+    gap_dtype = sphere.gap(grid).dtype
+    if gap_dtype != dtype:
+        msg = (
+            f"jc.Sphere(radius={jnp.dtype(dtype).name}) with the default centre gives a "
+            f"{gap_dtype} gap on a {jnp.dtype(dtype).name} grid (the default centre "
+            f"(0.0, 0.0) is {sphere.centre.dtype} under x64), so the solve would run in "
+            f"{gap_dtype}; the benchmark passes centre=jnp.zeros(2, "
+            f"{jnp.dtype(dtype).name})."
+        )
+        if msg not in notes:
+            notes.append(msg)
+        sphere = jc.Sphere(jnp.asarray(RADIUS, dtype), centre=jnp.zeros(2, dtype))
+    return hz, size, grid, material, sphere
+
+
+def run_case(n: int, dtype_name: str, args, notes: list[str]) -> dict:
+    dtype = DTYPES[dtype_name]
+    hz, size, grid, material, sphere = build(n, dtype, notes)
+    solver = jc.PolonskyKeer(rtol=args.rtol, max_steps=args.max_steps)
+    rtol_used = solver.tolerance(jnp.dtype(dtype))
+
+    op, t_build = _timed(lambda: jax.block_until_ready(jc.HalfSpace(grid)))
+
+    def solve(force):
+        s = jc.solve_normal(grid, sphere, material, force=force, solver=solver, operator=op)
+        s.pressure.block_until_ready()
+        return s
+
+    # First call (compiles) at the nominal load: its solution is the one compared
+    # with Hertz. Second call at a slightly different load, timed; the difference is
+    # the compile time.
+    sol, t_first = _timed(lambda: solve(FORCE))
+    _, t_second = _timed(lambda: solve(FORCE * (1 + 1e-4)))
+    times, iters, apps = [], [], []
+    for i in range(args.repeats):
+        s, t = _timed(lambda i=i: solve(FORCE * (1 + 1e-4 * (i + 2))))
+        times.append(t)
+        iters.append(int(s.iterations))
+        apps.append(int(s.applications))
+    t_solve = statistics.median(times)
+    # Per-call cost that does not depend on the iteration count: at zero load the
+    # solver stops before its first iteration, so this is the eager set-up (argument
+    # checks, the indenter's gap), the dispatch and one operator application.
+    zero = solve(0.0)
+    overhead = []
+    for _ in range(args.repeats):
+        overhead.append(_timed(lambda: solve(0.0))[1])
+    per_iter = statistics.median(t / max(k, 1) for t, k in zip(times, iters))
+    per_app = statistics.median(t / max(k, 1) for t, k in zip(times, apps))
+
+    compliance = material.instantaneous_compliance
+    spectrum = compliance * op.normal_spectrum(material.poisson)
+    conv = convolution_times(op, spectrum, n, dtype, args.repeats)
+
+    out_dtypes = {
+        "pressure": str(sol.pressure.dtype),
+        "approach": str(sol.approach.dtype),
+        "residual": str(sol.residual.dtype),
+        "displacement": str(sol.displacement.dtype),
+    }
+    if any(v != dtype_name for v in out_dtypes.values()):
+        note = (
+            f"n={n}: {dtype_name} inputs gave solution dtypes {out_dtypes} "
+            f"(expected {dtype_name} throughout)."
+        )
+        notes.append(note)
+
+    return {
+        "n": n,
+        "dtype": dtype_name,
+        "solution_dtype": str(sol.pressure.dtype),
+        "solution_dtypes": out_dtypes,
+        "rtol": rtol_used,
+        "max_steps": args.max_steps,
+        "cell_size": size / n,
+        "operator_build_s": t_build,
+        "first_call_s": t_first,
+        "second_call_s": t_second,
+        "compile_s": t_first - t_second,
+        "solve_s": t_solve,
+        "solve_s_all": times,
+        "zero_load_call_s": statistics.median(overhead),
+        "zero_load_iterations": int(zero.iterations),
+        "iterations": int(sol.iterations),
+        "applications": int(sol.applications),
+        "residual": float(sol.residual),
+        "converged": bool(sol.converged),
+        "iterations_timed": iters,
+        "applications_timed": apps,
+        "time_per_iteration_s": per_iter,
+        "time_per_application_s": per_app,
+        "conv_naive_s": conv["naive"],
+        "conv_pruned_s": conv["pruned"],
+        "iteration_over_conv_naive": per_iter / conv["naive"],
+        "iteration_over_conv_pruned": per_iter / conv["pruned"],
+        "application_over_conv_naive": per_app / conv["naive"],
+        "application_over_conv_pruned": per_app / conv["pruned"],
+        "errors": hertz_errors(sol, n, size, hz),
+    }
+
+
+# ---- Report -----------------------------------------------------------------------
+
+COLUMNS = [
+    # header, width, formatter
+    ("dtype", 7, lambda r: r["dtype"]),
+    ("n", 5, lambda r: f"{r['n']}"),
+    ("iter", 5, lambda r: f"{r['iterations']}"),
+    ("apps", 5, lambda r: f"{r['applications']}"),
+    ("residual", 8, lambda r: f"{r['residual']:.1e}" + ("" if r["converged"] else "!")),
+    ("compile", 7, lambda r: f"{r['compile_s']:.2f}"),
+    ("solve[s]", 8, lambda r: f"{r['solve_s']:.4f}"),
+    ("ovh[ms]", 7, lambda r: f"{1e3 * r['zero_load_call_s']:.2f}"),
+    ("it/cvN", 6, lambda r: f"{r['iteration_over_conv_naive']:.2f}"),
+    ("it/cvP", 6, lambda r: f"{r['iteration_over_conv_pruned']:.2f}"),
+    ("ap/cvN", 6, lambda r: f"{r['application_over_conv_naive']:.2f}"),
+    ("ap/cvP", 6, lambda r: f"{r['application_over_conv_pruned']:.2f}"),
+    ("conv[ms]", 8, lambda r: f"{1e3 * r['conv_naive_s']:.3f}"),
+    ("p0 err", 9, lambda r: f"{r['errors']['peak_pressure_rel']:+.2e}"),
+    ("d err", 9, lambda r: f"{r['errors']['approach_rel']:+.2e}"),
+    ("a err", 6, lambda r: f"{r['errors']['contact_radius_cells']:+.2f}"),
+    ("prof/p0", 8, lambda r: f"{r['errors']['profile_max_over_p0']:.2e}"),
+]
+
+LEGEND = """\
+iter/apps: CG iterations / operator applications; residual: '!' = not converged.
+compile: first call minus second call [s]; solve: median after compilation [s].
+ovh: time of a zero-load call (no iteration: set-up, dispatch, one application).
+it/cvN, it/cvP: time per iteration / one padded convolution, naive rfft2 (N) or
+  the library's pruned transform (P); ap/..: the same per operator application.
+conv: one naive padded convolution [ms]. p0 err, d err: relative errors of the peak
+  pressure and approach; a err: contact radius error [cells]; prof/p0: max |p - p_H|/p0."""
+
+
+def format_table(rows) -> str:
+    head = " ".join(h.rjust(w) for h, w, _ in COLUMNS)
+    lines = [head, "-" * len(head)]
+    for r in rows:
+        lines.append(" ".join(f(r).rjust(w) for _, w, f in COLUMNS))
+    return "\n".join(lines)
+
+
+def growth_exponents(rows) -> dict:
+    """Least-squares slope of log(iterations) against log(n), per dtype."""
+    out = {}
+    for dtype in sorted({r["dtype"] for r in rows}):
+        pts = [(r["n"], r["iterations"]) for r in rows if r["dtype"] == dtype]
+        if len(pts) >= 2:
+            x = np.log([p[0] for p in pts])
+            y = np.log([max(p[1], 1) for p in pts])
+            out[dtype] = float(np.polyfit(x, y, 1)[0])
+    return out
+
+
+def plot(rows, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 4.5))
+    for dtype, marker in (("float64", "o"), ("float32", "s")):
+        sel = [r for r in rows if r["dtype"] == dtype]
+        if not sel:
+            continue
+        err = [max(abs(r["errors"]["peak_pressure_rel"]), 1e-16) for r in sel]
+        t = [r["solve_s"] for r in sel]
+        ax.loglog(t, err, marker=marker, label=dtype)
+        for r, ti, ei in zip(sel, t, err):
+            ax.annotate(f"n={r['n']}", (ti, ei), textcoords="offset points",
+                        xytext=(5, 4), fontsize=8)
+    ax.set_xlabel("solve time after compilation [s]")
+    ax.set_ylabel("|peak pressure error| (relative to Hertz p0)")
+    ax.set_title("Hertz: rigid sphere on elastic half-space")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+# ---- Main -------------------------------------------------------------------------
+
+
+def parse_args(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--sizes", type=int, nargs="+", default=list(DEFAULT_SIZES),
+                    help="grid sizes n (n x n cells); default %(default)s")
+    ap.add_argument("--quick", action="store_true",
+                    help=f"only n = {', '.join(map(str, QUICK_SIZES))} (overrides --sizes)")
+    ap.add_argument("--dtypes", nargs="+", default=["float64"], choices=list(DTYPES),
+                    help="floating-point types; default %(default)s")
+    ap.add_argument("--rtol", type=float, default=None,
+                    help="solver tolerance (default: the solver's, 1e-8 in float64 "
+                         "and 1e-4 in float32)")
+    ap.add_argument("--max-steps", type=int, default=2000,
+                    help="solver iteration bound (default %(default)s)")
+    ap.add_argument("--repeats", type=int, default=5,
+                    help="timed calls per case, the median is reported (default %(default)s)")
+    ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "hertz.json",
+                    help="JSON output path (default %(default)s)")
+    ap.add_argument("--plot", action="store_true",
+                    help="also write a PNG (time vs peak-pressure error) next to the JSON")
+    args = ap.parse_args(argv)
+    if args.quick:
+        args.sizes = list(QUICK_SIZES)
+    if args.repeats < 1:
+        ap.error("--repeats must be >= 1")
+    return args
+
+
+def main(argv=None) -> int:
+    args = parse_args(argv)
+    t_start = time.perf_counter()
+    machine = machine_info()
+    hz = jc.Hertz(RADIUS, FORCE, SHEAR_MODULUS, POISSON)
+    problem = {
+        "radius_m": RADIUS,
+        "force_N": FORCE,
+        "shear_modulus_Pa": SHEAR_MODULUS,
+        "poisson": POISSON,
+        "domain": f"square, side {DOMAIN_OVER_A:g} a, non-periodic",
+        "hertz_contact_radius_m": float(hz.contact_radius),
+        "hertz_peak_pressure_Pa": float(hz.peak_pressure),
+        "hertz_approach_m": float(hz.approach),
+    }
+    print(f"Hertz benchmark on {machine['processor']} ({machine['cpu_count_usable']} usable "
+          f"CPUs), jax {machine['jax']}, {machine['device']}")
+    print(f"a = {problem['hertz_contact_radius_m']:.6e} m, "
+          f"p0 = {problem['hertz_peak_pressure_Pa']:.6e} Pa, "
+          f"delta = {problem['hertz_approach_m']:.6e} m")
+
+    notes: list[str] = []
+    if args.rtol is not None and args.rtol < 1e-6 and "float32" in args.dtypes:
+        notes.append(
+            f"--rtol {args.rtol:g} is below float32 round-off: float32 solves may stop at "
+            f"--max-steps {args.max_steps} with converged=False (and take long)."
+        )
+        print("WARNING:", notes[-1])
+    rows = []
+    for dtype in args.dtypes:
+        for n in args.sizes:
+            r = run_case(n, dtype, args, notes)
+            rows.append(r)
+            print(f"  done {dtype} n={n}: {r['iterations']} iterations, "
+                  f"solve {r['solve_s']:.4f} s, compile {r['compile_s']:.2f} s, "
+                  f"operator build {r['operator_build_s']:.2f} s", flush=True)
+
+    exponents = growth_exponents(rows)
+    result = {
+        "benchmark": "hertz",
+        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "command": " ".join([Path(sys.argv[0]).name, *(sys.argv[1:] if argv is None else argv)]),
+        "problem": problem,
+        "settings": {
+            "sizes": args.sizes,
+            "dtypes": args.dtypes,
+            "rtol": args.rtol,
+            "max_steps": args.max_steps,
+            "repeats": args.repeats,
+            "x64_enabled": bool(jax.config.jax_enable_x64),
+        },
+        "machine": machine,
+        "library": library_info(),
+        "notes": notes,
+        "summary": {"iteration_growth_exponent": exponents},
+        "results": rows,
+        "total_time_s": time.perf_counter() - t_start,
+    }
+
+    print()
+    print(format_table(rows))
+    print(LEGEND)
+    if exponents:
+        print("iterations ~ n^k, fitted k: "
+              + ", ".join(f"{d}: {k:.2f}" for d, k in exponents.items())
+              + "  (sqrt(n) is k = 0.5)")
+    for note in notes:
+        print("NOTE:", note)
+
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(result, indent=1) + "\n")
+    print(f"wrote {args.out}")
+    if args.plot:
+        png = args.out.with_suffix(".png")
+        plot(rows, png)
+        print(f"wrote {png}")
+    print(f"total {time.perf_counter() - t_start:.1f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,220 @@
+"""Normal contact: Hertz validation, convergence, invariants, control modes, bad input."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxcontact as jc
+import jaxcontact._solve_normal as solve_normal_module
+
+
+R, W, G, NU = 10e-3, 0.15, 1e6, 0.3
+HERTZ = jc.Hertz(R, W, G, NU)
+A_HZ = float(HERTZ.contact_radius)
+
+
+def hertz_solve(n, *, width=4.0, periodic=False, dtype=jnp.float64, **kwargs):
+    grid = jc.Grid((n, n), jnp.asarray(width * A_HZ, dtype), periodic=periodic)
+    material = jc.Elastic(jnp.asarray(G, dtype), jnp.asarray(NU, dtype))
+    sol = jc.solve_normal(
+        grid, jc.Sphere(jnp.asarray(R, dtype)), material, force=jnp.asarray(W, dtype), **kwargs
+    )
+    return grid, sol
+
+
+def contact_radius_along_axes(grid, contact):
+    """Half the extent of the contact along the x and y axes through the centre [length]."""
+    dx, dy = (float(d) for d in grid.spacing)
+    nx, ny = grid.shape
+    along_x = np.asarray(contact)[:, ny // 2 - 1 : ny // 2 + 1].any(axis=1).sum() * dx / 2
+    along_y = np.asarray(contact)[nx // 2 - 1 : nx // 2 + 1, :].any(axis=0).sum() * dy / 2
+    return along_x, along_y
+
+
+def test_hertz_128():
+    grid, sol = hertz_solve(128)
+    assert bool(sol.converged)
+    dx = float(grid.spacing[0])
+    # Peak pressure, approach: 1 % (32 cells per contact radius).
+    assert abs(float(sol.pressure.max()) / float(HERTZ.peak_pressure) - 1) < 1e-2
+    assert abs(float(sol.approach) / float(HERTZ.approach) - 1) < 1e-2
+    # Contact radius within one cell, along both axes and from the contact area.
+    for a_num in contact_radius_along_axes(grid, sol.contact):
+        assert abs(a_num - A_HZ) <= dx
+    a_area = np.sqrt(float(jnp.sum(sol.contact)) * float(grid.cell_area) / np.pi)
+    assert abs(a_area - A_HZ) <= dx
+    # Pressure profile: within 2 % of p0 away from the edge (the square-root edge is
+    # where a piecewise-constant pressure is least accurate), 6 % everywhere.
+    x, y = grid.coordinates()
+    r = np.hypot(np.asarray(x), np.asarray(y))
+    ref = np.asarray(HERTZ.pressure(r))
+    err = np.abs(np.asarray(sol.pressure) - ref) / float(HERTZ.peak_pressure)
+    assert err[r < 0.9 * A_HZ].max() < 2e-2
+    assert err.max() < 6e-2
+
+
+def test_mesh_convergence_order():
+    sizes = [32, 64, 128]
+    errors = []
+    for n in sizes:
+        _, sol = hertz_solve(n)
+        errors.append(abs(float(sol.approach) / float(HERTZ.approach) - 1))
+    orders = np.log2(np.asarray(errors[:-1]) / np.asarray(errors[1:]))
+    print(f"approach errors {errors}, observed orders {orders}")
+    assert all(e1 > e2 for e1, e2 in zip(errors, errors[1:]))
+    assert orders.min() > 0.8
+
+
+def test_invariants_load_balance_complementarity():
+    grid, sol = hertz_solve(64)
+    p, g = np.asarray(sol.pressure), np.asarray(sol.gap)
+    assert abs(float(sol.normal_force) / W - 1) < 1e-12
+    scale = float(HERTZ.approach)
+    assert p.min() >= 0
+    assert g.min() >= -1e-7 * scale
+    # Complementarity: in contact the gap vanishes to solver tolerance.
+    assert np.abs(g[p > 0]).max() < 1e-6 * scale
+    assert np.abs(p * g).max() < 1e-6 * scale * p.max()
+    assert float(sol.residual) <= 1e-8
+
+
+def test_load_and_displacement_control_agree():
+    grid, sol_lc = hertz_solve(64)
+    material = jc.Elastic(G, NU)
+    sol_dc = jc.solve_normal(grid, jc.Sphere(R), material, approach=sol_lc.approach)
+    assert bool(sol_dc.converged)
+    assert abs(float(sol_dc.normal_force) / W - 1) < 1e-6
+    np.testing.assert_allclose(sol_dc.pressure, sol_lc.pressure, atol=1e-6 * float(HERTZ.peak_pressure))
+    assert np.array_equal(np.asarray(sol_dc.contact), np.asarray(sol_lc.contact))
+
+
+def test_periodic_small_sphere_matches_non_periodic():
+    # The same cells: a sphere loaded in the middle of a periodic cell 8 contact radii
+    # wide. Periodic images change the approach (the mean displacement is arbitrary)
+    # but barely the pressure.
+    _, iso = hertz_solve(96, width=8.0)
+    _, per = hertz_solve(96, width=8.0, periodic=True)
+    assert bool(per.converged)
+    p0 = float(HERTZ.peak_pressure)
+    diff = np.abs(np.asarray(per.pressure) - np.asarray(iso.pressure)).max() / p0
+    print(f"periodic vs isolated max pressure difference / p0 = {diff:.2e}")
+    assert diff < 1.5e-2
+    assert abs(float(per.normal_force) / W - 1) < 1e-12
+
+
+def test_zero_load_gives_zero_pressure():
+    grid, sol = hertz_solve(32)
+    grid = jc.Grid((32, 32), 4 * A_HZ)
+    sol = jc.solve_normal(grid, jc.Sphere(R), jc.Elastic(G, NU), force=0.0)
+    assert bool(sol.converged)
+    assert float(jnp.abs(sol.pressure).max()) == 0.0
+    assert np.isfinite(float(sol.approach))
+
+
+def test_no_interference_under_displacement_control():
+    grid = jc.Grid((32, 32), 4 * A_HZ)
+    sol = jc.solve_normal(grid, jc.Sphere(R), jc.Elastic(G, NU), approach=-1e-6)
+    assert bool(sol.converged)
+    assert float(jnp.abs(sol.pressure).max()) == 0.0
+
+
+def test_rough_surface_many_islands():
+    key = jax.random.PRNGKey(0)
+    n = 64
+    noise = jax.random.normal(key, (n, n))
+    k = jnp.fft.fftfreq(n)
+    filt = 1 / (1e-2 + k[:, None] ** 2 + k[None, :] ** 2)
+    heights = jnp.fft.ifft2(jnp.fft.fft2(noise) * filt).real
+    heights = 1e-6 * (heights - heights.min()) / (heights.max() - heights.min())
+    grid = jc.Grid((n, n), 1e-3, periodic=True)
+    sol = jc.solve_normal(grid, heights, jc.Elastic(G, NU), force=0.05)
+    assert bool(sol.converged)
+    assert abs(float(sol.normal_force) / 0.05 - 1) < 1e-12
+    g = np.asarray(sol.gap)
+    assert g.min() >= -1e-6 * 1e-6
+    assert np.isfinite(np.asarray(sol.pressure)).all()
+
+
+def test_second_call_does_not_recompile(monkeypatch):
+    traces = []
+    original = solve_normal_module.polonsky_keer
+
+    def counting(*args, **kwargs):
+        traces.append(1)
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(solve_normal_module, "polonsky_keer", counting)
+    grid = jc.Grid((24, 20), (1e-3, 0.8e-3))
+    op = jc.HalfSpace(grid)
+    jc.solve_normal(grid, jc.Sphere(1e-2), jc.Elastic(1e6, 0.3), force=0.1, operator=op)
+    assert len(traces) == 1
+    sol = jc.solve_normal(
+        grid, jc.Sphere(2e-2), jc.Elastic(3e6, 0.25), force=0.3, operator=op
+    )
+    assert len(traces) == 1
+    assert bool(sol.converged)
+    # A new grid size (a value, not a shape) does not recompile either.
+    grid2 = jc.Grid((24, 20), (2e-3, 1.6e-3))
+    jc.solve_normal(grid2, jc.Sphere(1e-2), jc.Elastic(1e6, 0.3), force=0.1)
+    assert len(traces) == 1
+
+
+def test_float32():
+    grid, sol = hertz_solve(64, dtype=jnp.float32)
+    assert sol.pressure.dtype == jnp.float32
+    assert bool(sol.converged)
+    _, sol64 = hertz_solve(64)
+    rel = float(jnp.abs(sol.pressure - sol64.pressure).max() / sol64.pressure.max())
+    # float32 default rtol 1e-5: pressure within 2e-3 of float64 (measured 7e-4).
+    assert rel < 2e-3
+
+
+@pytest.mark.parametrize(
+    "make, match",
+    [
+        (lambda: jc.Elastic(0.0, 0.3), "shear_modulus"),
+        (lambda: jc.Elastic(-1.0, 0.3), "shear_modulus"),
+        (lambda: jc.Elastic(1.0, 0.6), "poisson"),
+        (lambda: jc.Elastic(1.0, -1.0), "poisson"),
+        (lambda: jc.Grid((32, 32), 0.0), "size"),
+        (lambda: jc.Grid((32, 32), (1.0, float("nan"))), "size"),
+        (lambda: jc.Grid((1, 32), 1.0), "shape"),
+        (lambda: jc.Sphere(-1.0), "radius"),
+        (lambda: jc.Surface(jnp.full((4, 4), jnp.nan)), "heights"),
+    ],
+)
+def test_bad_input_constructors(make, match):
+    with pytest.raises(ValueError, match=match):
+        make()
+
+
+def test_bad_input_solve():
+    grid = jc.Grid((16, 16), 1e-3)
+    mat = jc.Elastic(1e6, 0.3)
+    with pytest.raises(ValueError, match="force"):
+        jc.solve_normal(grid, jc.Sphere(1e-2), mat, force=-1.0)
+    with pytest.raises(ValueError, match="exactly one"):
+        jc.solve_normal(grid, jc.Sphere(1e-2), mat)
+    with pytest.raises(ValueError, match="heights"):
+        jc.solve_normal(grid, np.full((16, 16), np.nan), mat, force=1.0)
+    with pytest.raises(ValueError, match="shape"):
+        jc.solve_normal(grid, np.zeros((8, 8)), mat, force=1.0)
+
+
+def test_traced_bad_value_raises_at_run_time():
+    @jax.jit
+    def make(g):
+        return jc.Elastic(g, 0.3).shear_modulus
+
+    assert float(make(2.0)) == 2.0
+    with pytest.raises(Exception, match="shear_modulus"):
+        make(-2.0).block_until_ready()
+
+
+def test_elastic_material_functions():
+    mat = jc.Elastic(2.0, 0.3)
+    t = jnp.linspace(0, 5, 6)
+    np.testing.assert_allclose(mat.relaxation(t), 2.0)
+    np.testing.assert_allclose(mat.creep(t), 0.5)
+    assert float(mat.instantaneous_compliance) == 0.5
