@@ -32,7 +32,10 @@ At each step k:
   (`A sum q_t = F_t`, `delta_t` unknown) or displacement controlled (`delta_t` given;
   `delta_t = 0` when neither is given).
 
-Before step 0 the body is unloaded: `p = q = 0`, `s = 0`.
+Before step 0 the body is unloaded: `p = q = 0`, `s = 0`. `s_{k-1}` is kept on every
+cell, in contact or not, so a cell entering contact slips relative to where its surface
+point was at the previous step. Shear unknowns: `(q_x, q_y)` with disc constraints for
+coupling "none" and "full"; `q_x` alone (interval constraints) for coupling "x".
 
 Algorithm
 ---------
@@ -76,21 +79,32 @@ between the two convex sub-problems below, warm started from the previous step, 
     residual `max_i |L (q_i - P_Di(q_i - Ds_i / L))|` (a slip-increment error, in
     length units: `|Ds|` in stick cells, misalignment in slip cells) is at most
     `tol_inner = 1e-2 tol` times the displacement scale `max(|u|, |delta|)` of the step.
-    Tangential load control: `A sum q_t(delta_t)` is nondecreasing in `delta_t` (it is
-    minus the gradient of the concave dual function), so `delta_t` is found by bracketing
-    and `brentq` (nested, outer on `delta_y`, when both directions are load
-    controlled). A load with `|F_t| >= mu W` (gross sliding) raises `ValueError`.
+    Tangential load control: `A sum q_t(delta_t)` is continuous and nondecreasing in
+    `delta_t` (`sum q(delta_t)` is minus the gradient of the concave dual function
+    `min_q Phi(q) - delta_t.sum q`), so `delta_t` is found by bracketing and Illinois
+    regula falsi to `|A sum q_t - F_t| <= tol_inner mu W` or a round-off-wide bracket
+    (nested, outer on `delta_y`, when both directions are load controlled). A load with
+    `|F_t| >= mu W` (gross sliding) raises `ValueError`. A load-controlled `delta_t` is
+    undetermined without contact or friction; the previous value is then kept.
 
-Outputs are per step; `stick = contact & (|q| < mu p (1 - stick_tol))`.
+Outputs are per step; `stick = contact & (|q| < mu p (1 - stick_tol))`. The
+alternation is a contraction for moderate `mu (1 - 2 nu) / (2 (1 - nu))` (about 10
+sweeps to 1e-10 for mu = 0.3, nu = 0 .. 0.3); coupling "none" needs one sweep.
+`conditions` evaluates the contact and Coulomb residuals of a computed step.
 """
 
 import numpy as np
 import scipy.linalg as sla
-from scipy.optimize import brentq
 from scipy.sparse.linalg import eigsh
 
 
-__all__ = ["dense_influence", "grid_coordinates", "sphere_gap", "solve_history", "conditions"]
+__all__ = [
+    "dense_influence",
+    "grid_coordinates",
+    "sphere_gap",
+    "solve_history",
+    "conditions",
+]
 
 
 # ----------------------------------------------------------------------------- grid
@@ -106,7 +120,7 @@ def _pair(v, name, cast=float):
 
 
 def grid_coordinates(n, size):
-    """Cell-centre coordinates `(X, Y)` (each `(nx, ny)`, indexing "ij") and `(dx, dy)`."""
+    """Cell centres `(X, Y)` (each `(nx, ny)`, indexing "ij") and `(dx, dy)`."""
     nx, ny = _pair(n, "n", int)
     lx, ly = _pair(size, "size")
     dx, dy = lx / nx, ly / ny
@@ -122,25 +136,34 @@ def sphere_gap(n, size, radius):
     return (X**2 + Y**2) / (2.0 * radius)
 
 
+_JITTED = []
+
+
 def dense_influence(n, size, poisson):
-    """Dense influence matrices `C` of shape `(3, 3, N, N)`, unit shear modulus, float64.
+    """Dense influence matrices `C`, `(3, 3, N, N)`, unit shear modulus, float64.
 
     `C[a, b][i, j]` = displacement `a` at the centre of cell `i` due to a unit uniform
     traction `b` on cell `j` (order x, y, z; cells flattened in C order of `(nx, ny)`).
+    The `(2nx - 1) x (2ny - 1)` lattice of offsets is evaluated once (padded to a
+    multiple of 64 so that one compilation serves every small grid) and gathered.
     """
     import jax
 
     from jaxcontact import influence_coefficients
 
+    if not _JITTED:
+        _JITTED.append(jax.jit(influence_coefficients))
     nx, ny = _pair(n, "n", int)
     _, _, (dx, dy) = grid_coordinates(n, size)
-    ox = np.arange(-(nx - 1), nx) * dx
-    oy = np.arange(-(ny - 1), ny) * dy
+    mx, my = 2 * nx - 1, 2 * ny - 1
+    px, py = -(-mx // 64) * 64, -(-my // 64) * 64
+    ox = (np.arange(px) - (nx - 1)) * dx
+    oy = (np.arange(py) - (ny - 1)) * dy
     OX, OY = np.meshgrid(ox, oy, indexing="ij")
     with jax.enable_x64(True):
         lattice = np.asarray(
-            influence_coefficients(OX, OY, dx, dy, float(poisson)), dtype=np.float64
-        )
+            _JITTED[0](OX, OY, dx, dy, float(poisson)), dtype=np.float64
+        )[:, :, :mx, :my]
     ix, iy = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
     ix, iy = ix.ravel(), iy.ravel()
     di = ix[:, None] - ix[None, :] + nx - 1
@@ -183,7 +206,7 @@ def _eqp(M, f, act, load, value, cache=None):
 
 
 def _normal_primal_active_set(M, f, load, value, maxit):
-    """Finite primal active-set method (Nocedal & Wright Alg. 16.3) for bound constraints."""
+    """Finite primal active-set method (Nocedal & Wright, Alg. 16.3)."""
     N = f.size
     free = np.zeros(N, bool)
     p = np.zeros(N)
@@ -252,7 +275,7 @@ def _solve_normal(M, f, load, value, act0=None, maxit=100, cache=None):
 
 
 def _lambda_max(K):
-    """Largest eigenvalue of the symmetric positive definite `K`, slightly overestimated."""
+    """Largest eigenvalue of the SPD matrix `K`, slightly overestimated."""
     if K.shape[0] <= 64:
         return float(np.linalg.eigvalsh(K)[-1]) * (1 + 1e-10)
     v0 = np.ones(K.shape[0])
@@ -317,21 +340,50 @@ class _Tangential:
         )
 
 
-def _bracket_root(fun, x0, h, maxdoubling=80):
-    """Bracket the root of a nondecreasing `fun` starting from `x0`; return `(a, b)`."""
+def _monotone_root(fun, x0, h, ftol, maxit=300):
+    """Root of a continuous nondecreasing `fun`: bracket by doubling from `x0`, then
+    Illinois regula falsi. Stops at `|fun| <= ftol` or a bracket of round-off width
+    (then returns the end with the smaller `|fun|`). Values are never re-evaluated, so
+    noise in `fun` near the root cannot break the bracket."""
     f0 = fun(x0)
-    if f0 == 0.0:
-        return x0, x0
+    if abs(f0) <= ftol:
+        return x0
     direction = -np.sign(f0)
-    a = x0
-    for _ in range(maxdoubling):
-        b = x0 + direction * h
-        fb = fun(b)
+    xa, fa = x0, f0
+    for _ in range(100):
+        xb = x0 + direction * h
+        fb = fun(xb)
+        if abs(fb) <= ftol:
+            return xb
         if np.sign(fb) != np.sign(f0):
-            return (a, b) if a < b else (b, a)
-        a = b
+            break
+        xa, fa = xb, fb
         h *= 2.0
-    raise RuntimeError("could not bracket the tangential load")
+    else:
+        raise RuntimeError("could not bracket the tangential load")
+    if xa > xb:
+        xa, fa, xb, fb = xb, fb, xa, fa  # now fa < 0 < fb
+    side = 0
+    for _ in range(maxit):
+        x = (xa * fb - xb * fa) / (fb - fa)
+        if not xa < x < xb:
+            x = 0.5 * (xa + xb)
+        fx = fun(x)
+        if abs(fx) <= ftol:
+            return x
+        if fx < 0:
+            xa, fa = x, fx
+            if side == -1:
+                fb *= 0.5
+            side = -1
+        else:
+            xb, fb = x, fx
+            if side == 1:
+                fa *= 0.5
+            side = 1
+        if xb - xa <= 4e-16 * max(abs(xa), abs(xb)):
+            return xa if abs(fa) < abs(fb) else xb
+    raise RuntimeError("tangential load root search did not converge")
 
 
 # ----------------------------------------------------------------------- history
@@ -344,7 +396,9 @@ def _as_steps(name, v, nt):
     if v.ndim == 0:
         return np.full(nt, float(v))
     if v.shape != (nt,):
-        raise ValueError(f"{name} must be a scalar or have shape ({nt},), got {v.shape}")
+        raise ValueError(
+            f"{name} must be a scalar or have shape ({nt},), got {v.shape}"
+        )
     return v
 
 
@@ -399,13 +453,20 @@ def solve_history(
         raise ValueError("give at most one of Fx/delta_x and of Fy/delta_y")
     if coupling == "x" and (Fy is not None or delta_y is not None):
         raise ValueError("coupling 'x' has q_y = 0: no y input allowed")
-    lengths = {np.size(v) for v in (W, delta_z, Fx, delta_x, Fy, delta_y) if v is not None and np.ndim(v) > 0}
+    lengths = {
+        np.size(v)
+        for v in (W, delta_z, Fx, delta_x, Fy, delta_y)
+        if v is not None and np.ndim(v) > 0
+    }
     if len(lengths) > 1:
         raise ValueError(f"inputs over steps have different lengths {lengths}")
     nt = lengths.pop() if lengths else 1
     W, delta_z, Fx, delta_x, Fy, delta_y = (
         _as_steps(k, v, nt)
-        for k, v in zip(("W", "delta_z", "Fx", "delta_x", "Fy", "delta_y"), (W, delta_z, Fx, delta_x, Fy, delta_y))
+        for k, v in zip(
+            ("W", "delta_z", "Fx", "delta_x", "Fy", "delta_y"),
+            (W, delta_z, Fx, delta_x, Fy, delta_y),
+        )
     )
     if Fx is None and delta_x is None:
         delta_x = np.zeros(nt)
@@ -437,7 +498,10 @@ def solve_history(
     Czt = C[2, :dim]  # (dim, N, N)
 
     tol_in = 1e-2 * tol
-    out = {k: [] for k in ("p", "q", "u", "gap", "s", "ds", "delta_z", "delta_t", "alternations")}
+    out = {
+        k: []
+        for k in ("p", "q", "u", "gap", "s", "ds", "delta_z", "delta_t", "alternations")
+    }
 
     p = np.zeros(N)
     q = np.zeros((dim, N))
@@ -452,7 +516,9 @@ def solve_history(
         tgt = []  # per direction: ("load", F) or ("disp", delta)
         for Fv, dv in ((Fx, delta_x), (Fy, delta_y))[:dim]:
             tgt.append(("load", Fv[k]) if Fv is not None else ("disp", dv[k]))
-        dt = np.array([v if kind == "disp" else dt_prev[j] for j, (kind, v) in enumerate(tgt)])
+        dt = np.array(
+            [v if kind == "disp" else dt_prev[j] for j, (kind, v) in enumerate(tgt)]
+        )
         sp = s_prev if law == "incremental" else np.zeros_like(s_prev)
 
         for it in range(1, max_alternations + 1):
@@ -466,10 +532,17 @@ def solve_history(
                 key = cells.tobytes()
                 if key not in tang_cache:
                     tang_cache.clear()
-                    Kc = np.block([[Ctt[a, b][np.ix_(cells, cells)] for b in range(dim)] for a in range(dim)])
+                    Kc = np.block(
+                        [
+                            [Ctt[a, b][np.ix_(cells, cells)] for b in range(dim)]
+                            for a in range(dim)
+                        ]
+                    )
                     tang_cache[key] = (Kc, _lambda_max(Kc))
                 solver = _Tangential(*tang_cache[key], mu * p_new[cells], dim)
-                base = (sp - np.stack([Ctz[j] @ p_new for j in range(dim)]))[:, cells]  # (dim, m)
+                base = (sp - np.stack([Ctz[j] @ p_new for j in range(dim)]))[
+                    :, cells
+                ]  # (dim, m)
                 uscale = max(
                     abs(dz),
                     np.abs(Czz @ p_new).max(),
@@ -479,12 +552,16 @@ def solve_history(
                 )
                 tol_abs = tol_in * uscale
                 state = {"x": q[:, cells].ravel()}
+                memo = {}
 
                 def solve_q(dvec):
-                    b = (base + dvec[:, None]).ravel()
-                    x, _ = solver.solve(b, state["x"], tol_abs)
-                    state["x"] = x
-                    return x.reshape(dim, -1)
+                    key_d = tuple(dvec)
+                    if key_d not in memo:
+                        b = (base + dvec[:, None]).ravel()
+                        x, _ = solver.solve(b, state["x"], tol_abs)
+                        state["x"] = x
+                        memo[key_d] = x.reshape(dim, -1)
+                    return memo[key_d]
 
                 loads = [j for j, (kind, _) in enumerate(tgt) if kind == "load"]
                 Wc = A * p_new.sum()
@@ -492,48 +569,56 @@ def solve_history(
                     Ft = np.array([tgt[j][1] for j in loads])
                     if np.hypot.reduce(Ft) >= mu * Wc * (1 - 1e-12):
                         raise ValueError(
-                            f"step {k}: tangential load {Ft} >= mu W = {mu * Wc}: gross sliding"
+                            f"step {k}: tangential load {Ft} >= mu W = {mu * Wc}: "
+                            "gross sliding"
                         )
                     a_eff = np.sqrt(A * cells.size / np.pi)
-                    h_step = (2 - nu) / (8 * G * a_eff) * max(np.abs(Ft).max(), 1e-3 * mu * Wc)
+                    h_step = (
+                        (2 - nu)
+                        / (8 * G * a_eff)
+                        * max(np.abs(Ft).max(), 1e-3 * mu * Wc)
+                    )
+                    ftol = tol_in * mu * Wc
 
                     def root_1d(j, dvec):
-                        """Set dvec[j] so that A sum q_j = F_j (other entries fixed)."""
+                        """Copy of dvec with dvec[j] such that A sum q_j = F_j."""
+                        dvec = dvec.copy()
 
                         def fun(d):
                             dv = dvec.copy()
                             dv[j] = d
                             return A * solve_q(dv)[j].sum() - tgt[j][1]
 
-                        lo, hi = _bracket_root(fun, dvec[j], h_step)
-                        if lo != hi:
-                            dvec[j] = brentq(fun, lo, hi, xtol=1e-14 * h_step, rtol=4e-16, maxiter=200)
+                        dvec[j] = _monotone_root(fun, dvec[j], h_step, ftol)
                         return dvec
 
                     if len(loads) == 1:
-                        dt = root_1d(loads[0], dt.copy())
-                    else:
+                        dt = root_1d(loads[0], dt)
+                    else:  # nested: inner on delta_x, outer on delta_y
+                        inner = {}
 
                         def fun_y(d):
                             dv = dt.copy()
                             dv[1] = d
-                            dv = root_1d(0, dv)
-                            dt[0] = dv[0]
+                            inner[d] = dv = root_1d(0, dv)
                             return A * solve_q(dv)[1].sum() - tgt[1][1]
 
-                        lo, hi = _bracket_root(fun_y, dt[1], h_step)
-                        if lo != hi:
-                            dt[1] = brentq(fun_y, lo, hi, xtol=1e-14 * h_step, rtol=4e-16, maxiter=200)
-                        dt = root_1d(0, dt.copy())
+                        dt = inner[_monotone_root(fun_y, dt[1], h_step, ftol)]
+            elif any(kind == "load" and v != 0 for kind, v in tgt):
+                raise ValueError(
+                    f"step {k}: tangential load without friction or contact: "
+                    "gross sliding"
+                )
+            if cells.size and mu > 0:
                 q_new[:, cells] = solve_q(dt)
 
             pmax = max(p_new.max(), 1e-300)
             dp = np.abs(p_new - p).max()
             dq = np.abs(q_new - q).max() if mu > 0 else 0.0
             p, q = p_new, q_new
+            if coupling == "none":
+                break  # p does not depend on q: one sweep is exact
             if it > 1 and dp <= tol * pmax and dq <= tol * mu * pmax:
-                break
-            if coupling == "none" and it > 1:
                 break
         else:
             raise RuntimeError(
@@ -542,7 +627,9 @@ def solve_history(
                 f"{dq / (mu * pmax) if mu > 0 else 0:.2e})"
             )
 
-        u = np.stack([sum(C[a, b] @ q[b] for b in range(dim)) + C[a, 2] @ p for a in range(3)])
+        u = np.stack(
+            [sum(C[a, b] @ q[b] for b in range(dim)) + C[a, 2] @ p for a in range(3)]
+        )
         s = u[:dim] - dt[:, None]
         ds = s - sp
         if law == "incremental":
@@ -599,23 +686,29 @@ def conditions(res, k):
     p, q, ds, gap = res["p"][k], res["q"][k], res["ds"][k], res["gap"][k]
     mu = res["mu"]
     contact, stick, slip = res["contact"][k], res["stick"][k], res["slip"][k]
-    pmax = p.max()
+    pmax = max(p.max(), 1e-300)
     uscale = max(np.abs(res["u"][k]).max(), abs(res["delta_z"][k]))
+    uscale = uscale if uscale > 0 else max(np.abs(gap).max(), 1e-300)
     qn = np.hypot(q[0], q[1])
     dsn = np.hypot(ds[0], ds[1])
     out = {
         "p_min": p.min() / pmax,
         "gap_min": gap.min() / uscale,
-        "complementarity": np.max(p * np.abs(gap)) / (pmax * uscale),
+        "complementarity": np.max(p * np.abs(gap)) / pmax / uscale,
         "friction_excess": np.max(qn - mu * p) / (mu * pmax) if mu > 0 else 0.0,
-        "q_outside": np.max(np.where(contact, 0.0, qn)) / (mu * pmax) if mu > 0 else 0.0,
+        "q_outside": np.max(np.where(contact, 0.0, qn)) / (mu * pmax)
+        if mu > 0
+        else 0.0,
         "stick_slip": np.max(np.where(stick, dsn, 0.0)) / uscale,
     }
     big = slip & (dsn > 1e-7 * uscale)
     safe = np.where(dsn > 0, dsn, 1.0)
     mis = np.hypot(q[0] + mu * p * ds[0] / safe, q[1] + mu * p * ds[1] / safe)
-    out["slip_misalignment"] = np.max(np.where(big, mis, 0.0)) / (mu * pmax) if mu > 0 else 0.0
-    ratio = np.where(slip & (p > 0), dsn / np.where(p > 0, mu * p, 1.0), 0.0)
+    out["slip_misalignment"] = (
+        np.max(np.where(big, mis, 0.0)) / (mu * pmax) if mu > 0 else 0.0
+    )
+    denom = mu * p
+    ratio = np.divide(dsn, denom, out=np.zeros_like(dsn), where=slip & (denom > 0))
     nat = np.hypot(ds[0] + ratio * q[0], ds[1] + ratio * q[1])
     out["slip_natural"] = np.max(np.where(slip, nat, 0.0)) / uscale
     return out
