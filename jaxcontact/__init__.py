@@ -12,9 +12,13 @@ from ._indenter import (
     Surface as Surface,
 )
 from ._influence import influence_coefficients as influence_coefficients
+from ._loading import Displacement as Displacement, Force as Force
 from ._material.base import AbstractMaterial as AbstractMaterial
 from ._material.elastic import Elastic as Elastic
 from ._operator import HalfSpace as HalfSpace
+from ._scene import Scene as Scene
+from ._solution import Solution as Solution
+from ._solve import solve as solve
 from ._solve_normal import NormalSolution as NormalSolution, solve_normal as solve_normal
 from ._solver.normal import PolonskyKeer as PolonskyKeer
 

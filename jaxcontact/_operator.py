@@ -176,6 +176,37 @@ class HalfSpace(eqx.Module):
         """Normal displacement `u_z` [length] due to `pressure`, unit shear modulus."""
         return self.inverse(self.forward(pressure) * self.normal_spectrum(poisson))
 
+    def tangential_blocks(self, poisson):
+        """Real spectra `(xx, xy, yy)` of the tangential-tangential blocks."""
+        s, nu = self.spectra, poisson
+        xx = (1 - nu) * s["s1"] + s["s2"]
+        if not self.tangential_y:
+            return xx, None, None
+        return xx, nu * s["sxy"], s["s1"] + (1 - nu) * s["s2"]
+
+    def apply_tangential(self, shear: Float[Array, "nd nx ny"], poisson, blocks=None):
+        """Tangential displacements `(nd, nx, ny)` due to shear `(nd, nx, ny)`.
+
+        `nd = 1` (q_x only) or `2` (q_x, q_y; needs `tangential_y`). `blocks` may be
+        precomputed `tangential_blocks(poisson)`, optionally scaled by a compliance.
+        """
+        xx, xy, yy = self.tangential_blocks(poisson) if blocks is None else blocks
+        hat = self.forward(shear)
+        if shear.shape[0] == 1:
+            return self.inverse(xx * hat)
+        ux = xx * hat[0] + xy * hat[1]
+        uy = xy * hat[0] + yy * hat[1]
+        return self.inverse(jnp.stack([ux, uy]))
+
+    def coupling_spectra(self, poisson):
+        """Imaginary parts `(zx, zy)` of the `u_z <- q` spectra (`xz = -zx`), or None."""
+        if self.coupling not in ("x", "full"):
+            return None, None
+        c = 0.5 * (1 - 2 * poisson)
+        zx = c * self.spectra["szx"]
+        zy = c * self.spectra["szy"] if self.coupling == "full" else None
+        return zx, zy
+
     def apply(self, traction: Float[Array, "3 nx ny"], poisson) -> Float[Array, "3 nx ny"]:
         """Displacements `(u_x, u_y, u_z)` due to tractions `(q_x, q_y, p)`, unit modulus.
 

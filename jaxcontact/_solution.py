@@ -1,0 +1,41 @@
+"""`jc.Solution`: the result of `jc.solve`, with time as the leading axis."""
+
+import equinox as eqx
+from jaxtyping import Array, Bool, Float, Int
+
+
+class Solution(eqx.Module):
+    """Result of `jc.solve(scene)`. Leading axis: the scene's `times` (`nt`).
+
+    - `times`: `(nt,)` [time].
+    - `pressure`: `(nt, nx, ny)` contact pressure `p >= 0` [stress].
+    - `shear`: `(nt, 2, nx, ny)` shear traction `(q_x, q_y)` on the half-space [stress].
+    - `contact`: `(nt, nx, ny)` mask `p > 0`.
+    - `stick`: `(nt, nx, ny)` mask of stick cells (`|q| < mu p`); all of the contact when
+      nothing drives a tangential solve and `mu > 0`; empty when `mu = 0`.
+    - `normal_force`: `(nt,)` load `W` [force]; `approach`: `(nt,)` rigid-body approach
+      `delta_z` [length].
+    - `tangential_force`: `(nt, 2)` `(F_x, F_y)` [force];
+      `tangential_displacement`: `(nt, 2)` rigid tangential displacement
+      `(delta_x, delta_y)` [length] (0 in a direction that is not solved).
+    - `stick_ratio`: `(nt,)` stick area / contact area (0 with no contact).
+    - `sliding`: `(nt,)` gross sliding (contact but no stick cell).
+    - `converged`, `iterations`, `rounds`, `residual`: `(nt,)` per-step solver status
+      (inner CG iterations summed over the normal/tangential rounds).
+    """
+
+    times: Float[Array, " nt"]
+    pressure: Float[Array, "nt nx ny"]
+    shear: Float[Array, "nt 2 nx ny"]
+    contact: Bool[Array, "nt nx ny"]
+    stick: Bool[Array, "nt nx ny"]
+    normal_force: Float[Array, " nt"]
+    approach: Float[Array, " nt"]
+    tangential_force: Float[Array, "nt 2"]
+    tangential_displacement: Float[Array, "nt 2"]
+    stick_ratio: Float[Array, " nt"]
+    sliding: Bool[Array, " nt"]
+    converged: Bool[Array, " nt"]
+    iterations: Int[Array, " nt"]
+    rounds: Int[Array, " nt"]
+    residual: Float[Array, " nt"]

@@ -1,0 +1,144 @@
+"""`jc.solve`: the entry point. Time stepping over the scene's `times` with `lax.scan`."""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+
+from ._loading import Force
+from ._operator import HalfSpace
+from ._scene import Scene, normal_targets, tangential_targets
+from ._solution import Solution
+from ._solver.coupled import StepConfig, contact_step
+from ._solver.normal import hertzian_guess
+
+
+def _operator_for(scene: Scene, nd: int) -> HalfSpace:
+    if nd == 0:
+        return HalfSpace(scene.grid, "normal")
+    coupling = scene.coupling
+    return HalfSpace(scene.grid, coupling, tangential_y=nd == 2)
+
+
+@eqx.filter_jit
+def _solve(scene: Scene, operator: HalfSpace, config: StepConfig) -> Solution:
+    grid = scene.grid
+    dtype = grid.size.dtype
+    nd = config.nd
+    nx, ny = grid.shape
+    times = scene.times.astype(dtype)
+    h0 = scene.indenter.gap(grid).astype(dtype)
+    material = scene.material
+    poisson = material.poisson.astype(dtype)
+    compliance = material.instantaneous_compliance.astype(dtype)
+    friction = scene.friction.astype(dtype)
+    area = grid.cell_area
+
+    w_targets = normal_targets(scene).astype(dtype)
+    t_targets, _ = tangential_targets(scene, nd)
+    t_targets = t_targets.astype(dtype)
+    history = jnp.zeros((3, nx, ny), dtype)
+    use_total_slip = scene.slip == "total"
+
+    def step(carry, inputs):
+        p_prev, q_prev, s_prev = carry
+        w_target, t_target = inputs
+        guess = None
+        if config.normal_force_control:
+            e_star = 2 / (compliance * (1 - poisson))
+            fresh = hertzian_guess(h0 + history[2], w_target, e_star, area)
+            guess = jnp.where(jnp.sum(p_prev) > 0, p_prev, fresh)
+        previous_slip = jnp.zeros_like(s_prev) if use_total_slip else s_prev
+        res = contact_step(
+            operator, config, compliance, poisson, friction, h0, history,
+            w_target, t_target, previous_slip, p_prev, q_prev, normal_guess=guess,
+        )
+        return (res.pressure, res.shear, res.slip), res
+
+    init = (jnp.zeros((nx, ny), dtype), jnp.zeros((nd, nx, ny), dtype),
+            jnp.zeros((nd, nx, ny), dtype))
+    _, res = jax.lax.scan(step, init, (w_targets, t_targets))
+
+    nt = times.shape[0]
+    shear = jnp.zeros((nt, 2, nx, ny), dtype).at[:, :nd].set(res.shear)
+    delta_t = jnp.zeros((nt, 2), dtype).at[:, :nd].set(res.delta_t)
+    contact = res.pressure > 0
+    n_contact = jnp.sum(contact, axis=(1, 2))
+    n_stick = jnp.sum(res.stick, axis=(1, 2))
+    stick_ratio = jnp.where(n_contact > 0, n_stick / jnp.maximum(n_contact, 1), 0.0)
+    return Solution(
+        times=times,
+        pressure=res.pressure,
+        shear=shear,
+        contact=contact,
+        stick=res.stick,
+        normal_force=area * jnp.sum(res.pressure, axis=(1, 2)),
+        approach=res.approach,
+        tangential_force=area * jnp.sum(shear, axis=(2, 3)),
+        tangential_displacement=delta_t,
+        stick_ratio=stick_ratio.astype(dtype),
+        sliding=res.sliding & (nd > 0),
+        converged=res.converged,
+        iterations=res.iterations,
+        rounds=res.rounds,
+        residual=res.residual,
+    )
+
+
+def solve(
+    scene: Scene,
+    *,
+    rtol: float | None = None,
+    max_steps: int = 2000,
+    max_rounds: int = 100,
+    resync_every: int = 25,
+    operator: HalfSpace | None = None,
+) -> Solution:
+    """Solve a contact scene over its time axis.
+
+    **Main arguments:**
+
+    - `scene`: a `jc.Scene`.
+
+    **Other arguments:**
+
+    - `rtol`: relative tolerance of every contact solve (normal gap, Coulomb
+      conditions, loads). `None`: `1e-8` in float64, `1e-5` in float32.
+    - `max_steps`: iteration bound of each CG solve; `max_rounds`: bound on the
+      normal/tangential alternations of a coupled step.
+    - `resync_every`: recompute displacements exactly every this many CG iterations.
+    - `operator`: a prebuilt `jc.HalfSpace` to reuse across calls (must match the
+      coupling the scene needs; built here if omitted).
+
+    **Returns:** a `jc.Solution`. Steps that do not converge are flagged in
+    `converged` (the time stepping carries on); nothing fails silently.
+
+    The scene decides what runs: no tangential solve when `friction` is zero or there is
+    no tangential input and no coupling; no y solve unless there is a y input or the
+    coupling is `"full"`; an elastic material carries no history.
+    """
+    if not isinstance(scene, Scene):
+        raise TypeError(f"scene must be a jc.Scene, got {scene!r}")
+    for name, value in (("max_steps", max_steps), ("max_rounds", max_rounds),
+                        ("resync_every", resync_every)):
+        if not isinstance(value, int) or value < 1:
+            raise ValueError(f"{name} must be a positive integer, got {value!r}")
+    if rtol is not None and not (0 < rtol < 1):
+        raise ValueError(f"rtol must be in (0, 1), got {rtol!r}")
+    nd = scene.tangential_directions
+    dtype = scene.grid.size.dtype
+    if rtol is None:
+        rtol = 1e-8 if jnp.finfo(dtype).bits >= 64 else 1e-5
+    _, force_control = tangential_targets(scene, nd)
+    config = StepConfig(
+        nd=nd,
+        coupled=nd > 0 and scene.coupling != "none",
+        normal_force_control=isinstance(scene.normal, Force),
+        tangential_force_control=force_control,
+        rtol=float(rtol),
+        max_steps=max_steps,
+        max_rounds=max_rounds,
+        resync_every=resync_every,
+    )
+    if operator is None:
+        operator = _operator_for(scene, nd)
+    return _solve(scene, operator, config)

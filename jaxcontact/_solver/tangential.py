@@ -1,0 +1,254 @@
+r"""Tangential contact with isotropic Coulomb friction: a projected conjugate gradient.
+
+Problem (one step, pressure `p` given): find the shear traction `q` (`nd = 1` or `2`
+components) with `|q_i| <= mu p_i` on every cell and the slip increment
+
+    ds = A q + b - delta_t
+
+equal to zero on stick cells (`|q_i| < mu p_i`) and opposite to `q` on slip cells
+(`q_i = -mu p_i ds_i / |ds_i|`). `A = C K_tt` is the tangential compliance operator,
+`b` collects the tangential displacement from the pressure (coupling), the loading
+history and minus the previous slip (incremental law: `ds` is the slip INCREMENT), and
+`delta_t` is the rigid tangential displacement: prescribed per direction
+(displacement control) or the Lagrange multiplier of the load `A sum(q_d) = F_d`
+(load control). These are the KKT conditions of the convex problem
+
+    min_q  1/2 q.A q + q.(b - delta_t)   s.t.  |q_i| <= mu p_i,
+
+so the solver is a projected CG in the spirit of Polonsky & Keer (1999):
+
+- conjugate gradient steps on the stick set (directions made mean-free per
+  load-controlled direction, which keeps the load);
+- on slip cells, the projected gradient: the rotation of `q` along its disc (and the
+  whole `ds` where the slip has the wrong sign, which releases the cell); the stick
+  and slip parts form one search direction with an exact line search (one operator
+  application);
+- projection of every cell onto its friction disc; the load is then restored by a
+  uniform shift of the stick cells;
+- one operator application per iteration while the stick set is steady (the
+  displacement is updated by linearity, and recomputed when the projection changed `q`
+  outside the search direction); CG restarts when the stick set changes;
+- convergence is tested on the Coulomb conditions AND on the loads: `residual =
+  max(||violation||_2 / scale, max_d |A sum q_d - F_d| / (mu W))`, where the violation
+  is `ds` on stick cells and the part of `ds` not opposite to `q` on slip cells.
+"""
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array, Bool, Float, Int
+
+
+class TangentialState(NamedTuple):
+    shear: Float[Array, "nd nx ny"]
+    displacement: Float[Array, "nd nx ny"]  # A q (without b)
+    slip: Float[Array, "nd nx ny"]  # ds = A q + b - delta
+    delta: Float[Array, " nd"]
+    stick: Bool[Array, "nx ny"]
+    iterations: Int[Array, ""]
+    residual: Float[Array, ""]
+    converged: Bool[Array, ""]
+    applications: Int[Array, ""]
+
+
+def _safe_div(a, b):
+    ok = b != 0
+    return jnp.where(ok, a / jnp.where(ok, b, 1), jnp.zeros_like(a))
+
+
+def _norm(q):
+    """Pointwise magnitude of an `(nd, nx, ny)` vector field."""
+    return jnp.sqrt(jnp.sum(q * q, axis=0))
+
+
+def project(q, bound):
+    """Project each cell's traction onto its friction disc `|q| <= bound`."""
+    mag = _norm(q)
+    factor = jnp.where(mag > bound, _safe_div(bound, mag), 1.0)
+    return q * factor
+
+
+def tangential_lipschitz(blocks):
+    """Largest eigenvalue of the tangential operator from its spectra `(xx, xy, yy)`.
+
+    The (padded) operator is a principal submatrix of the circulant whose 2x2 symbol is
+    `[[xx, xy], [xy, yy]]` at each frequency, so by interlacing its eigenvalues are
+    bounded by the symbol's largest eigenvalue.
+    """
+    xx, xy, yy = blocks
+    if xy is None:
+        return jnp.max(xx)
+    half = 0.5 * (xx + yy)
+    return jnp.max(half + jnp.sqrt(0.25 * (xx - yy) ** 2 + xy * xy))
+
+
+def tangential_cg(
+    apply_fn,
+    b: Float[Array, "nd nx ny"],
+    bound: Float[Array, "nx ny"],
+    force_control: tuple[bool, ...],
+    target: Float[Array, " nd"],
+    cell_area,
+    lipschitz,
+    *,
+    q0: Float[Array, "nd nx ny"] | None = None,
+    rtol: float,
+    max_steps: int,
+    resync_every: int = 25,
+) -> TangentialState:
+    """Solve the tangential problem (see module docs).
+
+    **Arguments:**
+
+    - `apply_fn`: `q -> A q`, `(nd, nx, ny)` shear [stress] to tangential
+      displacement [length].
+    - `b`: fixed part of the slip increment [length], `(nd, nx, ny)`.
+    - `bound`: `mu p` [stress], `(nx, ny)`; cells with `bound == 0` carry no shear.
+    - `force_control`: per direction, `True` for load control (`target` is the force
+      [force]) or `False` for displacement control (`target` is `delta_t` [length]).
+    - `cell_area`: [length^2]; `lipschitz`: an upper bound `L` of the largest
+      eigenvalue of `A` [length/stress] (the step `1/L` of a projected gradient is
+      safe).
+    - `q0`: warm start (projected and load-corrected).
+    """
+    nd = b.shape[0]
+    dtype = b.dtype
+    force_mask = jnp.asarray(force_control)[:, None, None]
+    target = jnp.asarray(target, dtype)
+    contact = bound > 0
+    bound_total = cell_area * jnp.sum(bound)  # mu W
+    q0 = jnp.zeros_like(b) if q0 is None else q0
+
+    def stick_of(q):
+        return contact & (_norm(q) < bound * (1 - 1e-10))
+
+    def fix_load(q):
+        """Shift the stick cells (or, if none, all contact cells) to carry the load."""
+        stick = stick_of(q)
+        where = jnp.where(jnp.any(stick), stick, contact)
+        count = jnp.sum(where)
+        deficit = _safe_div(target / cell_area - jnp.sum(q, axis=(1, 2)), count)
+        shift = jnp.where(force_mask, deficit[:, None, None] * where, 0.0)
+        return project(q + shift, bound)
+
+    def evaluate(q, w):
+        stick = stick_of(q)
+        n_stick = jnp.sum(stick)
+        mean_stick = _safe_div(jnp.sum(jnp.where(stick, w, 0), axis=(1, 2)), n_stick)
+        mean_contact = _safe_div(
+            jnp.sum(jnp.where(contact, w, 0), axis=(1, 2)), jnp.sum(contact)
+        )
+        multiplier = jnp.where(n_stick > 0, mean_stick, mean_contact)
+        delta = jnp.where(jnp.asarray(force_control), multiplier, target)
+        ds = w - delta[:, None, None]
+        mag_q = _norm(q)
+        q_hat = q * _safe_div(1.0, mag_q)
+        slip_violation = ds + _norm(ds) * q_hat
+        violation = jnp.where(stick, ds, jnp.where(contact, slip_violation, 0))
+        scale = jnp.sqrt(jnp.sum((w - b) ** 2)) + jnp.sqrt(jnp.sum(jnp.where(contact, b, 0) ** 2))
+        num = jnp.sqrt(jnp.sum(violation * violation))
+        res = jnp.where(num == 0, 0.0, _safe_div(num, scale))
+        res = jnp.where((num > 0) & (scale == 0), jnp.inf, res)
+        load_err = jnp.abs(cell_area * jnp.sum(q, axis=(1, 2)) - target)
+        load_err = jnp.where(jnp.asarray(force_control), _safe_div(load_err, bound_total), 0.0)
+        res = jnp.maximum(res, jnp.max(load_err))
+        # Nothing can carry shear: the (zero) solution is exact.
+        res = jnp.where(bound_total > 0, res, 0.0)
+        return ds, delta, stick, res
+
+    q0 = fix_load(project(q0, bound))
+    w0 = apply_fn(q0) + b
+    ds0, _, _, res0 = evaluate(q0, w0)
+    init = dict(
+        q=q0, w=w0, ds=ds0, t=jnp.zeros_like(b), g_old=jnp.ones((), dtype),
+        restart=jnp.array(True), it=jnp.array(0), residual=res0, applications=jnp.array(1),
+    )
+
+    def cond(s):
+        return (s["residual"] > rtol) & (s["it"] < max_steps)
+
+    def body(s):
+        q, w = s["q"], s["w"]
+        stick = stick_of(q)
+        q_hat = q * _safe_div(1.0, _norm(q))
+        # Free variables: stick cells (full vectors) and, on slip cells, the rotation
+        # along the friction disc (tangent component). Slip cells whose slip has the
+        # wrong sign (multiplier < 0) are released: free as full vectors.
+        ds_stick_delta = s["ds"]
+        lam = -jnp.sum(ds_stick_delta * q_hat, axis=0)
+        slip_cells = contact & ~stick
+        release = slip_cells & (lam < 0)
+        full = stick | release
+        rotate = slip_cells & ~release
+        # Load-controlled directions: the multiplier delta that makes the reduced
+        # gradient sum-free (exact PK mean-gap analogue with rotating slip cells).
+        if nd == 1:
+            tangent = jnp.zeros_like(q)
+        else:
+            tangent = jnp.stack([-q_hat[1], q_hat[0]])
+        tt = jnp.where(rotate, tangent, 0)  # (nd, nx, ny), unit vectors on rotate cells
+        n_full = jnp.sum(full)
+        # M delta = rhs with M = n_full I + sum_rotate e_perp e_perp^T.
+        m = n_full * jnp.eye(nd, dtype=dtype) + jnp.einsum("iab,jab->ij", tt, tt)
+        rhs = jnp.sum(jnp.where(full, w, 0), axis=(1, 2)) + jnp.einsum(
+            "iab,ab->i", tt, jnp.sum(tt * w, axis=0)
+        )
+        m = jnp.where(force_mask[:, :, 0] & force_mask[:, :, 0].T, m, jnp.eye(nd, dtype=dtype))
+        rhs = jnp.where(jnp.asarray(force_control), rhs, 0.0)
+        solved = jnp.linalg.solve(m + jnp.where(n_full + jnp.sum(rotate) > 0, 0.0, 1.0) * jnp.eye(nd, dtype=dtype), rhs)
+        delta = jnp.where(jnp.asarray(force_control), solved, target)
+        ds = w - delta[:, None, None]
+        lam = -jnp.sum(ds * q_hat, axis=0)
+        r = jnp.where(full, ds, tt * jnp.sum(tt * ds, axis=0))
+        g_norm = jnp.sum(r * r)
+        beta = jnp.where(s["restart"], 0.0, _safe_div(g_norm, s["g_old"]))
+        t = r + beta * s["t"]
+        t = jnp.where(full, t, tt * jnp.sum(tt * t, axis=0))
+        at = apply_fn(t)
+        # Curvature of the disc constraint along rotations: lambda / bound.
+        curv_disc = jnp.where(rotate, _safe_div(jnp.maximum(lam, 0.0), bound), 0.0)
+        curvature = jnp.sum(t * at) + jnp.sum(curv_disc * jnp.sum(t * t, axis=0))
+        tau = _safe_div(jnp.sum(r * t), curvature)
+        q_step = q - tau * t
+        w_new = w - tau * at
+        q_new = project(q_step, bound)
+        q_new = jax.lax.cond(
+            jnp.any(jnp.asarray(force_control)), fix_load, lambda x: x, q_new
+        )
+        extra = jnp.max(jnp.abs(q_new - q_step))
+        dirty = extra > 1e-2 * rtol * jnp.max(bound)
+        stick_new = stick_of(q_new)
+        changed = jnp.any(stick_new != stick) | jnp.any(release)
+        it = s["it"] + 1
+        need_exact = dirty | (it % resync_every == 0)
+        w_new = jax.lax.cond(need_exact, lambda: apply_fn(q_new) + b, lambda: w_new)
+        ds_new, _, _, res = evaluate(q_new, w_new)
+
+        def exact():
+            w_e = apply_fn(q_new) + b
+            ds_e, _, _, res_e = evaluate(q_new, w_e)
+            return w_e, ds_e, res_e
+
+        certify = (~need_exact) & (res <= rtol)
+        w_new, ds_new, res = jax.lax.cond(certify, exact, lambda: (w_new, ds_new, res))
+        return dict(
+            q=q_new, w=w_new, ds=ds_new, t=t, g_old=g_norm,
+            restart=changed, it=it, residual=res,
+            applications=s["applications"] + 1 + need_exact + certify,
+        )
+
+    s = jax.lax.while_loop(cond, body, init)
+    ds, delta, stick, res = evaluate(s["q"], s["w"])
+    del nd
+    return TangentialState(
+        shear=s["q"],
+        displacement=s["w"] - b,
+        slip=ds,
+        delta=delta,
+        stick=stick,
+        iterations=s["it"],
+        residual=res,
+        converged=res <= rtol,
+        applications=s["applications"],
+    )
