@@ -26,39 +26,38 @@ modulus `G` divide by `G`.
 """
 
 import jax.numpy as jnp
+import numpy as np
 
 
-def _safe_mul(factor, fn, arg_num, arg_den):
-    """`factor * fn(arg_num / |arg_den|)`, returning 0 where `factor == 0`."""
-    zero = factor == 0
-    den = jnp.where(zero, 1.0, jnp.abs(arg_den))
-    return jnp.where(zero, 0.0, factor * fn(arg_num / den))
-
-
-def _a(u, v):
+def _a(u, v, xp=jnp):
     """`u asinh(v / |u|)`, continuous with value 0 at `u = 0`."""
-    return _safe_mul(u, jnp.arcsinh, v, u)
+    zero = u == 0
+    den = xp.where(zero, 1.0, xp.abs(u))
+    return xp.where(zero, 0.0, u * xp.arcsinh(v / den))
 
 
-def _c(u, v):
+def _c(u, v, xp=jnp):
     """`v ln r + u atan(v / u)`: antiderivative of `x / r^2`, bounded at `r = 0`."""
     r2 = u * u + v * v
-    log_r = 0.5 * jnp.log(jnp.where(r2 == 0, 1.0, r2))
-    first = jnp.where(v == 0, 0.0, v * log_r)
+    log_r = 0.5 * xp.log(xp.where(r2 == 0, 1.0, r2))
+    first = xp.where(v == 0, 0.0, v * log_r)
     zero = u == 0
-    second = jnp.where(zero, 0.0, u * jnp.arctan(v / jnp.where(zero, 1.0, u)))
+    second = xp.where(zero, 0.0, u * xp.arctan(v / xp.where(zero, 1.0, u)))
     return first + second
 
 
-def _minus_r(u, v):
-    return -jnp.sqrt(u * u + v * v)
+def _minus_r(u, v, xp=jnp):
+    return -xp.sqrt(u * u + v * v)
 
 
-def _corner_sum(fn, x, y, a, b):
-    return fn(x + a, y + b) - fn(x - a, y + b) - fn(x + a, y - b) + fn(x - a, y - b)
+def _corner_sum(fn, x, y, a, b, xp):
+    return (
+        fn(x + a, y + b, xp) - fn(x - a, y + b, xp) - fn(x + a, y - b, xp)
+        + fn(x - a, y - b, xp)
+    )
 
 
-def base_integrals(x, y, dx, dy):
+def base_integrals(x, y, dx, dy, xp=jnp):
     """Poisson-independent cell integrals, each `/ (2 pi)` (shapes of `x`, `y`).
 
     Returns `(s1, s2, sxy, szx, szy)`:
@@ -68,14 +67,18 @@ def base_integrals(x, y, dx, dy):
     - `sxy = corner[-r] / 2pi` (`∫∫ x y / r^3`);
     - `szx = corner[v ln r + u atan(v/u)] / 2pi` (`∫∫ x / r^2`), and `szy` the same
       with x and y swapped.
+
+    `xp` is the array namespace: `jax.numpy` (traceable) or `numpy` (float64 even when
+    JAX runs in float32: far from the load the corner sums cancel to a small fraction
+    of their terms, so they need double precision).
     """
     a, b = dx / 2, dy / 2
-    two_pi = 2 * jnp.pi
-    s1 = _corner_sum(_a, x, y, a, b) / two_pi
-    s2 = _corner_sum(lambda u, v: _a(v, u), x, y, a, b) / two_pi
-    sxy = _corner_sum(_minus_r, x, y, a, b) / two_pi
-    szx = _corner_sum(_c, x, y, a, b) / two_pi
-    szy = _corner_sum(lambda u, v: _c(v, u), x, y, a, b) / two_pi
+    two_pi = 2 * np.pi
+    s1 = _corner_sum(_a, x, y, a, b, xp) / two_pi
+    s2 = _corner_sum(lambda u, v, xp: _a(v, u, xp), x, y, a, b, xp) / two_pi
+    sxy = _corner_sum(_minus_r, x, y, a, b, xp) / two_pi
+    szx = _corner_sum(_c, x, y, a, b, xp) / two_pi
+    szy = _corner_sum(lambda u, v, xp: _c(v, u, xp), x, y, a, b, xp) / two_pi
     return s1, s2, sxy, szx, szy
 
 

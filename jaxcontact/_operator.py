@@ -25,9 +25,10 @@ from typing import Literal
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Float
 
-from . import _influence
+from . import _influence, _validate
 from ._grid import Grid
 
 
@@ -35,67 +36,109 @@ Coupling = Literal["normal", "none", "x", "full"]
 _COUPLINGS = ("normal", "none", "x", "full")
 
 
-def _wraparound_offsets(n: int, d, dtype):
+def _concrete(grid: Grid) -> bool:
+    return not _validate.is_traced(grid.size)
+
+
+def _wraparound_offsets(n: int, d, xp):
     """Offsets `i * d` for `i = 0..n-1, (unused), -(n-1)..-1`, length `2n`, and a mask."""
-    i = jnp.arange(2 * n)
-    i = jnp.where(i < n, i, i - 2 * n)
-    return i.astype(dtype) * d, i != -n
+    i = xp.arange(2 * n)
+    i = xp.where(i < n, i, i - 2 * n)
+    return i * d, i != -n
 
 
 def _dc_spectra(grid: Grid, names):
-    """rfft2 of the wrap-around padded real-space coefficients, one per `names`."""
+    """rfft2 of the wrap-around padded real-space coefficients, one per `names`.
+
+    Computed in float64 NumPy when the grid is concrete (the far-field corner sums
+    cancel to a small fraction of their terms: float32 would lose 1e-2 of them at 500
+    cells), with `jax.numpy` when it is traced.
+    """
+    xp = np if _concrete(grid) else jnp
     nx, ny = grid.shape
     dx, dy = grid.spacing
-    ox, mx = _wraparound_offsets(nx, dx, dx.dtype)
-    oy, my = _wraparound_offsets(ny, dy, dy.dtype)
-    x, y = jnp.meshgrid(ox, oy, indexing="ij")
+    if xp is np:
+        dx, dy = float(dx), float(dy)
+    ox, mx = _wraparound_offsets(nx, dx, xp)
+    oy, my = _wraparound_offsets(ny, dy, xp)
+    x, y = xp.meshgrid(ox, oy, indexing="ij")
     keep = mx[:, None] & my[None, :]
-    base = dict(zip(("s1", "s2", "sxy", "szx", "szy"), _influence.base_integrals(x, y, dx, dy)))
+    base = dict(zip(("s1", "s2", "sxy", "szx", "szy"),
+                    _influence.base_integrals(x, y, dx, dy, xp=xp)))
     out = {}
     for name in names:
-        spec = jnp.fft.rfft2(jnp.where(keep, base[name], 0.0))
+        spec = xp.fft.rfft2(xp.where(keep, base[name], 0.0))
         # Even kernels have real spectra, odd kernels (szx, szy) imaginary ones.
-        out[name] = spec.imag if name in ("szx", "szy") else spec.real
+        spec = spec.imag if name in ("szx", "szy") else spec.real
+        out[name] = jnp.asarray(spec, dtype=grid.size.dtype)
     return out
 
 
-def _periodic_spectra(grid: Grid, names, aliases: int = 6):
-    """Continuous-kernel spectra times the cell shape factor, summed over aliases."""
+def _alias_sum(grid: Grid, names, aliases: int, xp):
     nx, ny = grid.shape
     dx, dy = grid.spacing
-    dtype = dx.dtype
-    kx0 = 2 * jnp.pi * jnp.fft.fftfreq(nx, 1.0).astype(dtype) / dx
-    ky0 = 2 * jnp.pi * jnp.fft.rfftfreq(ny, 1.0).astype(dtype) / dy
-    kx0, ky0 = jnp.meshgrid(kx0, ky0, indexing="ij")
-    out = {name: jnp.zeros_like(kx0) for name in names}
+    if xp is np:
+        dx, dy = float(dx), float(dy)
+    kx0 = 2 * np.pi * xp.fft.fftfreq(nx) / dx
+    ky0 = 2 * np.pi * xp.fft.rfftfreq(ny) / dy
+    a = xp.arange(-aliases, aliases + 1)
+    ky = ky0[None, :, None] + 2 * np.pi * a[None, None, :] / dy  # (1, nky, A)
+    out = {name: 0.0 for name in names}
     for ax in range(-aliases, aliases + 1):
-        for ay in range(-aliases, aliases + 1):
-            kx = kx0 + 2 * jnp.pi * ax / dx
-            ky = ky0 + 2 * jnp.pi * ay / dy
-            k2 = kx * kx + ky * ky
-            zero = k2 == 0
-            k2 = jnp.where(zero, 1.0, k2)
-            k = jnp.sqrt(k2)
-            shape = jnp.sinc(kx * dx / (2 * jnp.pi)) * jnp.sinc(ky * dy / (2 * jnp.pi))
-            # Fourier transforms (f^(k) = ∫ f e^{-ik.x}) of the kernels / (2 pi):
-            #   1/(2pi r) -> 1/k; x^2/(2pi r^3) -> ky^2/k^3; xy/(2pi r^3) -> -kx ky/k^3;
-            #   x/(2pi r^2) -> -i kx/k^2 (we store the imaginary part).
-            terms = {
-                # s1 + s2 = 1/k and s2 = ky^2/k^3, so s1 = kx^2/k^3.
-                "s1": kx * kx / (k2 * k),
-                "s2": ky * ky / (k2 * k),
-                "sxy": -kx * ky / (k2 * k),
-                "szx": -kx / k2,
-                "szy": -ky / k2,
-            }
-            for name in names:
-                out[name] = out[name] + jnp.where(zero, 0.0, terms[name] * shape)
-    # Odd kernels: the Nyquist entries of a real odd sequence's DFT vanish.
-    if "szx" in out and nx % 2 == 0:
-        out["szx"] = out["szx"].at[nx // 2, :].set(0.0)
-    if "szy" in out and ny % 2 == 0:
-        out["szy"] = out["szy"].at[:, -1].set(0.0)
+        kx = (kx0 + 2 * np.pi * ax / dx)[:, None, None]  # (nkx, 1, 1)
+        k2 = kx * kx + ky * ky
+        zero = k2 == 0
+        k2 = xp.where(zero, 1.0, k2)
+        k = xp.sqrt(k2)
+        shape = xp.sinc(kx * dx / (2 * np.pi)) * xp.sinc(ky * dy / (2 * np.pi))
+        # Fourier transforms (f^(k) = ∫ f e^{-ik.x}) of the kernels / (2 pi):
+        #   1/(2pi r) -> 1/k; x^2/(2pi r^3) -> ky^2/k^3; xy/(2pi r^3) -> -kx ky/k^3;
+        #   x/(2pi r^2) -> -i kx/k^2 (we store the imaginary part).
+        terms = {
+            "s1": lambda: kx * kx / (k2 * k),  # s1 + s2 = 1/k, s2 = ky^2/k^3
+            "s2": lambda: ky * ky / (k2 * k),
+            "sxy": lambda: -kx * ky / (k2 * k),
+            "szx": lambda: -kx / k2,
+            "szy": lambda: -ky / k2,
+        }
+        for name in names:
+            out[name] = out[name] + xp.sum(xp.where(zero, 0.0, terms[name]() * shape), axis=-1)
     return out
+
+
+def _periodic_spectra(grid: Grid, names, aliases: int = 10):
+    """Continuous-kernel spectra times the cell shape factor, summed over aliases.
+
+    The alias sums are truncated at `|a| <= aliases` per axis. Measured against 60
+    aliases (32^2 grid), the real-space kernels are then accurate to about 5e-5 of
+    their maximum for the normal and tangential blocks and 1.3e-3 for the
+    normal-tangential coupling blocks (whose alias sums converge most slowly). The
+    mean (k = 0) displacement is set to zero.
+    """
+    xp = np if _concrete(grid) else jnp
+    nx, ny = grid.shape
+    summed = _alias_sum(grid, names, aliases, xp)
+    out = {}
+    for name in names:
+        spec = summed[name]
+        if name == "szx" and nx % 2 == 0:  # odd kernels: zero Nyquist entries
+            spec = spec.at[nx // 2, :].set(0.0) if xp is jnp else _zero_row(spec, nx // 2)
+        if name == "szy" and ny % 2 == 0:
+            spec = spec.at[:, -1].set(0.0) if xp is jnp else _zero_col(spec, -1)
+        out[name] = jnp.asarray(spec, dtype=grid.size.dtype)
+    return out
+
+
+def _zero_row(a, i):
+    a = np.array(a)
+    a[i, :] = 0.0
+    return a
+
+
+def _zero_col(a, j):
+    a = np.array(a)
+    a[:, j] = 0.0
+    return a
 
 
 def _needed(coupling: str, tangential_y: bool):
