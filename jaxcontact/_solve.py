@@ -40,22 +40,29 @@ def _solve(scene: Scene, operator: HalfSpace, config: StepConfig) -> Solution:
     use_total_slip = scene.slip == "total"
 
     def step(carry, inputs):
-        p_prev, q_prev, s_prev = carry
+        p_prev, q_prev, s_prev, p_prev2, q_prev2 = carry
         w_target, t_target = inputs
-        guess = None
+        # Warm start: linear extrapolation of the last two steps (exact for a
+        # solution that changes linearly along the path), clipped to p >= 0.
+        have_two = jnp.sum(p_prev2) > 0
+        p_start = jnp.where(have_two, jnp.maximum(2 * p_prev - p_prev2, 0), p_prev)
+        p_start = jnp.where(p_prev > 0, p_start, 0)
+        q_start = jnp.where(have_two, 2 * q_prev - q_prev2, q_prev)
+        guess = p_start
         if config.normal_force_control:
             e_star = 2 / (compliance * (1 - poisson))
             fresh = hertzian_guess(h0 + history[2], w_target, e_star, area)
-            guess = jnp.where(jnp.sum(p_prev) > 0, p_prev, fresh)
+            guess = jnp.where(jnp.sum(p_start) > 0, p_start, fresh)
         previous_slip = jnp.zeros_like(s_prev) if use_total_slip else s_prev
         res = contact_step(
             operator, config, compliance, poisson, friction, h0, history,
-            w_target, t_target, previous_slip, p_prev, q_prev, normal_guess=guess,
+            w_target, t_target, previous_slip, p_start, q_start, normal_guess=guess,
         )
-        return (res.pressure, res.shear, res.slip), res
+        return (res.pressure, res.shear, res.slip, p_prev, q_prev), res
 
-    init = (jnp.zeros((nx, ny), dtype), jnp.zeros((nd, nx, ny), dtype),
-            jnp.zeros((nd, nx, ny), dtype))
+    zeros_p = jnp.zeros((nx, ny), dtype)
+    zeros_q = jnp.zeros((nd, nx, ny), dtype)
+    init = (zeros_p, zeros_q, zeros_q, zeros_p, zeros_q)
     _, res = jax.lax.scan(step, init, (w_targets, t_targets))
 
     nt = times.shape[0]
