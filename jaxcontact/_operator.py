@@ -236,7 +236,7 @@ class HalfSpace(eqx.Module):
         xx, xy, yy = self.tangential_blocks(poisson) if blocks is None else blocks
         hat = self.forward(shear)
         if shear.shape[0] == 1:
-            return self.inverse(xx * hat)
+            return self.inverse(xx[None] * hat)
         ux = xx * hat[0] + xy * hat[1]
         uy = xy * hat[0] + yy * hat[1]
         return self.inverse(jnp.stack([ux, uy]))

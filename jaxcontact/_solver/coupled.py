@@ -152,7 +152,7 @@ def contact_step(
             w = apply_tangential(q) + b
             contact = bound > 0
             n = jnp.maximum(jnp.sum(contact), 1)
-            delta = jnp.sum(jnp.where(contact, w, 0), axis=(1, 2)) / n
+            delta = jnp.sum(jnp.where(contact[None], w, 0), axis=(1, 2)) / n
             return TangentialState(
                 shear=q, displacement=w - b, slip=w - delta[:, None, None], delta=delta,
                 stick=jnp.zeros_like(contact), iterations=jnp.array(0),

@@ -66,7 +66,7 @@ def project(q, bound):
     """Project each cell's traction onto its friction disc `|q| <= bound`."""
     mag = _norm(q)
     factor = jnp.where(mag > bound, _safe_div(bound, mag), 1.0)
-    return q * factor
+    return q * factor[None]
 
 
 def tangential_lipschitz(blocks):
@@ -129,24 +129,24 @@ def tangential_cg(
         where = jnp.where(jnp.any(stick), stick, contact)
         count = jnp.sum(where)
         deficit = _safe_div(target / cell_area - jnp.sum(q, axis=(1, 2)), count)
-        shift = jnp.where(force_mask, deficit[:, None, None] * where, 0.0)
+        shift = jnp.where(force_mask, deficit[:, None, None] * where[None], 0.0)
         return project(q + shift, bound)
 
     def evaluate(q, w):
         stick = stick_of(q)
         n_stick = jnp.sum(stick)
-        mean_stick = _safe_div(jnp.sum(jnp.where(stick, w, 0), axis=(1, 2)), n_stick)
+        mean_stick = _safe_div(jnp.sum(jnp.where(stick[None], w, 0), axis=(1, 2)), n_stick)
         mean_contact = _safe_div(
-            jnp.sum(jnp.where(contact, w, 0), axis=(1, 2)), jnp.sum(contact)
+            jnp.sum(jnp.where(contact[None], w, 0), axis=(1, 2)), jnp.sum(contact)
         )
         multiplier = jnp.where(n_stick > 0, mean_stick, mean_contact)
         delta = jnp.where(jnp.asarray(force_control), multiplier, target)
         ds = w - delta[:, None, None]
         mag_q = _norm(q)
-        q_hat = q * _safe_div(1.0, mag_q)
-        slip_violation = ds + _norm(ds) * q_hat
-        violation = jnp.where(stick, ds, jnp.where(contact, slip_violation, 0))
-        scale = jnp.sqrt(jnp.sum((w - b) ** 2)) + jnp.sqrt(jnp.sum(jnp.where(contact, b, 0) ** 2))
+        q_hat = q * _safe_div(1.0, mag_q)[None]
+        slip_violation = ds + _norm(ds)[None] * q_hat
+        violation = jnp.where(stick[None], ds, jnp.where(contact[None], slip_violation, 0))
+        scale = jnp.sqrt(jnp.sum((w - b) ** 2)) + jnp.sqrt(jnp.sum(jnp.where(contact[None], b, 0) ** 2))
         num = jnp.sqrt(jnp.sum(violation * violation))
         res = jnp.where(num == 0, 0.0, _safe_div(num, scale))
         res = jnp.where((num > 0) & (scale == 0), jnp.inf, res)
@@ -171,7 +171,7 @@ def tangential_cg(
     def body(s):
         q, w = s["q"], s["w"]
         stick = stick_of(q)
-        q_hat = q * _safe_div(1.0, _norm(q))
+        q_hat = q * _safe_div(1.0, _norm(q))[None]
         # Free variables: stick cells (full vectors) and, on slip cells, the rotation
         # along the friction disc (tangent component). Slip cells whose slip has the
         # wrong sign (multiplier < 0) are released: free as full vectors.
@@ -187,24 +187,29 @@ def tangential_cg(
             tangent = jnp.zeros_like(q)
         else:
             tangent = jnp.stack([-q_hat[1], q_hat[0]])
-        tt = jnp.where(rotate, tangent, 0)  # (nd, nx, ny), unit vectors on rotate cells
+        tt = jnp.where(rotate[None], tangent, 0)  # (nd, nx, ny), unit vectors on rotate cells
         n_full = jnp.sum(full)
         # M delta = rhs with M = n_full I + sum_rotate e_perp e_perp^T.
         m = n_full * jnp.eye(nd, dtype=dtype) + jnp.einsum("iab,jab->ij", tt, tt)
-        rhs = jnp.sum(jnp.where(full, w, 0), axis=(1, 2)) + jnp.einsum(
+        rhs = jnp.sum(jnp.where(full[None], w, 0), axis=(1, 2)) + jnp.einsum(
             "iab,ab->i", tt, jnp.sum(tt * w, axis=0)
         )
-        m = jnp.where(force_mask[:, :, 0] & force_mask[:, :, 0].T, m, jnp.eye(nd, dtype=dtype))
-        rhs = jnp.where(jnp.asarray(force_control), rhs, 0.0)
-        solved = jnp.linalg.solve(m + jnp.where(n_full + jnp.sum(rotate) > 0, 0.0, 1.0) * jnp.eye(nd, dtype=dtype), rhs)
+        # Displacement-controlled directions are known: move them to the right side.
+        fc = jnp.asarray(force_control)
+        rhs = rhs - m @ jnp.where(fc, 0.0, target)
+        both = fc[:, None] & fc[None, :]
+        m = jnp.where(both, m, jnp.eye(nd, dtype=dtype))
+        rhs = jnp.where(fc, rhs, 0.0)
+        empty = jnp.where(n_full + jnp.sum(rotate) > 0, 0.0, 1.0)
+        solved = jnp.linalg.solve(m + empty * jnp.eye(nd, dtype=dtype), rhs)
         delta = jnp.where(jnp.asarray(force_control), solved, target)
         ds = w - delta[:, None, None]
         lam = -jnp.sum(ds * q_hat, axis=0)
-        r = jnp.where(full, ds, tt * jnp.sum(tt * ds, axis=0))
+        r = jnp.where(full[None], ds, tt * jnp.sum(tt * ds, axis=0)[None])
         g_norm = jnp.sum(r * r)
         beta = jnp.where(s["restart"], 0.0, _safe_div(g_norm, s["g_old"]))
         t = r + beta * s["t"]
-        t = jnp.where(full, t, tt * jnp.sum(tt * t, axis=0))
+        t = jnp.where(full[None], t, tt * jnp.sum(tt * t, axis=0)[None])
         at = apply_fn(t)
         # Curvature of the disc constraint along rotations: lambda / bound.
         curv_disc = jnp.where(rotate, _safe_div(jnp.maximum(lam, 0.0), bound), 0.0)
