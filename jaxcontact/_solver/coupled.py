@@ -21,7 +21,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
 from .normal import polonsky_keer
-from .tangential import TangentialState, tangential_cg, tangential_lipschitz
+from .tangential import TangentialState, tangential_cg
 
 
 class StepResult(NamedTuple):
@@ -104,7 +104,8 @@ def contact_step(
     def apply_tangential(q):
         return operator.apply_tangential(q, poisson, blocks=blocks)
 
-    lipschitz = tangential_lipschitz(blocks)
+    unit = jnp.zeros((nd, nx, ny), dtype).at[0, nx // 2, ny // 2].set(1.0)
+    self_compliance = apply_tangential(unit)[0, nx // 2, ny // 2]
 
     zx, zy = operator.coupling_spectra(poisson)
 
@@ -135,7 +136,7 @@ def contact_step(
         def cg():
             return tangential_cg(
                 apply_tangential, b, bound, config.tangential_force_control,
-                tangential_target, area, lipschitz, q0=q_start, rtol=config.rtol,
+                tangential_target, area, self_compliance, q0=q_start, rtol=config.rtol,
                 max_steps=config.max_steps, resync_every=config.resync_every,
             )
 

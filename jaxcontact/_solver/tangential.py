@@ -90,7 +90,7 @@ def tangential_cg(
     force_control: tuple[bool, ...],
     target: Float[Array, " nd"],
     cell_area,
-    lipschitz,
+    self_compliance,
     *,
     q0: Float[Array, "nd nx ny"] | None = None,
     rtol: float,
@@ -107,9 +107,8 @@ def tangential_cg(
     - `bound`: `mu p` [stress], `(nx, ny)`; cells with `bound == 0` carry no shear.
     - `force_control`: per direction, `True` for load control (`target` is the force
       [force]) or `False` for displacement control (`target` is `delta_t` [length]).
-    - `cell_area`: [length^2]; `lipschitz`: an upper bound `L` of the largest
-      eigenvalue of `A` [length/stress] (the step `1/L` of a projected gradient is
-      safe).
+    - `cell_area`: [length^2]; `self_compliance`: `A_ii`, the tangential displacement
+      of a cell under its own unit shear [length/stress] (scales the preconditioner).
     - `q0`: warm start (projected and load-corrected).
     """
     nd = b.shape[0]
@@ -181,38 +180,46 @@ def tangential_cg(
         release = slip_cells & (lam < 0)
         full = stick | release
         rotate = slip_cells & ~release
-        # Load-controlled directions: the multiplier delta that makes the reduced
-        # gradient sum-free (exact PK mean-gap analogue with rotating slip cells).
         if nd == 1:
             tangent = jnp.zeros_like(q)
         else:
             tangent = jnp.stack([-q_hat[1], q_hat[0]])
-        tt = jnp.where(rotate[None], tangent, 0)  # (nd, nx, ny), unit vectors on rotate cells
-        n_full = jnp.sum(full)
-        # M delta = rhs with M = n_full I + sum_rotate e_perp e_perp^T.
-        m = n_full * jnp.eye(nd, dtype=dtype) + jnp.einsum("iab,jab->ij", tt, tt)
-        rhs = jnp.sum(jnp.where(full[None], w, 0), axis=(1, 2)) + jnp.einsum(
-            "iab,ab->i", tt, jnp.sum(tt * w, axis=0)
-        )
-        # Displacement-controlled directions are known: move them to the right side.
-        fc = jnp.asarray(force_control)
-        rhs = rhs - m @ jnp.where(fc, 0.0, target)
-        both = fc[:, None] & fc[None, :]
-        m = jnp.where(both, m, jnp.eye(nd, dtype=dtype))
-        rhs = jnp.where(fc, rhs, 0.0)
-        empty = jnp.where(n_full + jnp.sum(rotate) > 0, 0.0, 1.0)
-        solved = jnp.linalg.solve(m + empty * jnp.eye(nd, dtype=dtype), rhs)
-        delta = jnp.where(jnp.asarray(force_control), solved, target)
-        ds = w - delta[:, None, None]
-        lam = -jnp.sum(ds * q_hat, axis=0)
+        tt = jnp.where(rotate[None], tangent, 0)  # unit tangents on rotating cells
+        ds = s["ds"]
+        lam = jnp.maximum(-jnp.sum(ds * q_hat, axis=0), 0.0)
+        # Reduced gradient: ds on full cells, its tangential part on rotating cells.
         r = jnp.where(full[None], ds, tt * jnp.sum(tt * ds, axis=0)[None])
-        g_norm = jnp.sum(r * r)
-        beta = jnp.where(s["restart"], 0.0, _safe_div(g_norm, s["g_old"]))
-        t = r + beta * s["t"]
+        # Diagonal preconditioner: the rotation of a slip cell feels the disc
+        # curvature lambda / bound on top of the self-compliance A_ii; without it the
+        # cells at the contact edge (bound -> 0) make the reduced problem
+        # ill-conditioned.
+        curv_disc = jnp.where(rotate, _safe_div(lam, bound), 0.0)
+        weight = jnp.where(full, 1.0, jnp.where(
+            rotate, self_compliance / (self_compliance + curv_disc), 0.0))
+
+        # Projection onto load-preserving directions (sum over free variables = 0 per
+        # load-controlled direction), oblique in the preconditioner's metric:
+        # z = P r - P B (B^T P B)^{-1} B^T P r. Symmetric, so CG stays valid.
+        def basis(c):  # B c: c on full cells, (e_perp . c) e_perp on rotating cells
+            return jnp.where(full[None], c[:, None, None], tt * jnp.einsum("i,iab->ab", c, tt)[None])
+
+        eye = jnp.eye(nd, dtype=dtype)
+        m = jnp.sum(jnp.where(full, weight, 0)) * eye + jnp.einsum(
+            "ab,iab,jab->ij", weight, tt, tt)
+        fc = jnp.asarray(force_control)
+        both = fc[:, None] & fc[None, :]
+        m = jnp.where(both, m, eye)
+        pr = weight[None] * r
+        rhs = jnp.where(fc, jnp.sum(pr, axis=(1, 2)), 0.0)
+        empty = jnp.where(jnp.trace(jnp.where(both, m, 0.0)) > 0, 0.0, 1.0)
+        coef = jnp.linalg.solve(m + empty * eye, rhs)
+        z = pr - weight[None] * basis(jnp.where(fc, coef, 0.0))
+        rz = jnp.sum(r * z)
+        beta = jnp.where(s["restart"], 0.0, _safe_div(rz, s["g_old"]))
+        t = z + beta * s["t"]
         t = jnp.where(full[None], t, tt * jnp.sum(tt * t, axis=0)[None])
+        g_norm = rz
         at = apply_fn(t)
-        # Curvature of the disc constraint along rotations: lambda / bound.
-        curv_disc = jnp.where(rotate, _safe_div(jnp.maximum(lam, 0.0), bound), 0.0)
         curvature = jnp.sum(t * at) + jnp.sum(curv_disc * jnp.sum(t * t, axis=0))
         tau = _safe_div(jnp.sum(r * t), curvature)
         q_step = q - tau * t

@@ -1,0 +1,146 @@
+"""Cattaneo-Mindlin and Spence benchmarks: run time against error of `jc.solve`.
+
+Cases (SI units; rigid sphere R = 10 mm, W = 0.15 N, G = 1 MPa, nu = 0.3):
+
+1. Cattaneo-Mindlin (coupling "none", mu = 0.3, F = mu W / 2, load applied in one
+   step) at n = 64 .. 512 over a square of side 4a: solve time after compilation,
+   iterations, error of the stick radius (from the stick area) in cells and of the
+   tangential compliance against Johnson's one-body formula.
+2. The issue's two timed Cattaneo-Mindlin cases: 105^2 cells over 2.3 a and 256^2 over
+   5.5 a (about 45 cells per contact radius).
+3. The ratio of a coupled frictional solve to a normal solve on the same 256^2 grid.
+4. Spence (coupling "full", nu = 0.3, mu = 0.2): the normal load applied in 90
+   increments on 105^2 cells over 2.3 a; the stick radius c/a at the end.
+
+Usage::
+
+    python benchmarks/cattaneo.py            # everything
+    python benchmarks/cattaneo.py --quick    # small sizes, 30 Spence increments
+
+Results go to `benchmarks/results/cattaneo.json`.
+"""
+
+import argparse
+import json
+import platform
+import sys
+import time
+from pathlib import Path
+
+import jax
+
+
+jax.config.update("jax_enable_x64", True)
+
+import jax.numpy as jnp  # noqa: E402
+import numpy as np  # noqa: E402
+
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+import jaxcontact as jc  # noqa: E402
+
+
+R, W, G, NU = 10e-3, 0.15, 1e6, 0.3
+A = float(jc.Hertz(R, W, G, NU).contact_radius)
+
+
+def timed(fn, repeats):
+    out = fn()
+    jax.block_until_ready(out)
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        out = fn()
+        jax.block_until_ready(out)
+        times.append(time.perf_counter() - start)
+    return min(times), out
+
+
+def cattaneo(n, width, mu=0.3, ratio=0.5, repeats=3):
+    grid = jc.Grid((n, n), width * A)
+    scene = jc.Scene(grid, jc.Sphere(R), jc.Elastic(G, NU), times=jnp.zeros(1),
+                     normal=jc.Force(W), x=jc.Force(ratio * mu * W), friction=mu,
+                     coupling="none")
+    op = jc.HalfSpace(grid, "none", tangential_y=False)
+    start = time.perf_counter()
+    sol = jc.solve(scene, operator=op)
+    jax.block_until_ready(sol.pressure)
+    first = time.perf_counter() - start
+    seconds, sol = timed(lambda: jc.solve(scene, operator=op), repeats)
+    dx = float(grid.spacing[0])
+    c_num = np.sqrt(float(sol.stick[0].sum()) * float(grid.cell_area) / np.pi)
+    c_ref = A * (1 - ratio) ** (1 / 3)
+    delta_ref = 3 * mu * W * (2 - NU) / (16 * G * A) * (1 - (1 - ratio) ** (2 / 3))
+    return dict(
+        n=n, width_over_a=width, cells_per_radius=A / dx, solve_s=seconds,
+        compile_s=first - seconds, iterations=int(sol.iterations[0]),
+        converged=bool(sol.converged[0]), residual=float(sol.residual[0]),
+        stick_radius_error_cells=(c_num - c_ref) / dx,
+        compliance_rel_error=float(sol.tangential_displacement[0, 0]) / delta_ref - 1,
+        force_rel_error=float(sol.tangential_force[0, 0]) / (ratio * mu * W) - 1,
+    )
+
+
+def normal_vs_coupled(n=256, width=4.0, mu=0.3, repeats=3):
+    grid = jc.Grid((n, n), width * A)
+    op = jc.HalfSpace(grid)
+    normal_s, _ = timed(lambda: jc.solve_normal(grid, jc.Sphere(R), jc.Elastic(G, NU),
+                                                force=W, operator=op).pressure, repeats)
+    scene = jc.Scene(grid, jc.Sphere(R), jc.Elastic(G, NU), times=jnp.zeros(1),
+                     normal=jc.Force(W), x=jc.Force(0.5 * mu * W), friction=mu,
+                     coupling="full")
+    op_full = jc.HalfSpace(grid, "full")
+    coupled_s, sol = timed(lambda: jc.solve(scene, operator=op_full), repeats)
+    return dict(n=n, normal_s=normal_s, coupled_full_s=coupled_s,
+                ratio=coupled_s / normal_s, rounds=int(sol.rounds[0]),
+                iterations=int(sol.iterations[0]), converged=bool(sol.converged[0]))
+
+
+def spence(n=105, width=2.3, increments=90, mu=0.2):
+    grid = jc.Grid((n, n), width * A)
+    loads = W * jnp.arange(1, increments + 1) / increments
+    scene = jc.Scene(grid, jc.Sphere(R), jc.Elastic(G, NU),
+                     times=jnp.arange(increments, dtype=float), normal=jc.Force(loads),
+                     friction=mu, coupling="full")
+    op = jc.HalfSpace(grid, "full")
+    seconds, sol = timed(lambda: jc.solve(scene, operator=op), 1)
+    ratio = np.asarray(sol.stick_ratio)
+    return dict(n=n, increments=increments, mu=mu, poisson=NU, solve_s=seconds,
+                c_over_a_final=float(np.sqrt(ratio[-1])),
+                c_over_a_half_load=float(np.sqrt(ratio[increments // 2])),
+                iterations_total=int(sol.iterations.sum()),
+                rounds_total=int(sol.rounds.sum()),
+                all_converged=bool(sol.converged.all()))
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--out", default=str(ROOT / "benchmarks/results/cattaneo.json"))
+    args = parser.parse_args()
+    sizes = [64, 128] if args.quick else [64, 128, 256, 512]
+    results = dict(
+        machine=dict(platform=platform.platform(), processor=platform.processor(),
+                     python=platform.python_version(), jax=jax.__version__,
+                     device=str(jax.devices()[0]), dtype="float64"),
+        cattaneo_mindlin=[cattaneo(n, 4.0) for n in sizes],
+        targets=[cattaneo(105, 2.3), cattaneo(256, 5.5)],
+        normal_vs_coupled=normal_vs_coupled(128 if args.quick else 256),
+        spence=spence(increments=30 if args.quick else 90),
+    )
+    for row in results["cattaneo_mindlin"] + results["targets"]:
+        print(f"CM n={row['n']:4d} width={row['width_over_a']}a cells/a={row['cells_per_radius']:.1f} "
+              f"solve={row['solve_s']:.3f}s it={row['iterations']} "
+              f"c err={row['stick_radius_error_cells']:+.2f} cells "
+              f"compliance err={row['compliance_rel_error']:+.1e}")
+    print("normal vs coupled:", results["normal_vs_coupled"])
+    print("Spence:", results["spence"])
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    Path(args.out).write_text(json.dumps(results, indent=2))
+    print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()
