@@ -4,7 +4,9 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
+from ._history import DirectHistory, ElasticHistory, RecursiveHistory
 from ._loading import Force
+from ._material.elastic import Elastic
 from ._operator import HalfSpace
 from ._scene import Scene, normal_targets, tangential_targets
 from ._solution import Solution
@@ -19,8 +21,30 @@ def _operator_for(scene: Scene, nd: int) -> HalfSpace:
     return HalfSpace(scene.grid, coupling, tangential_y=nd == 2)
 
 
+def _history_for(material, times, history: str, scheme: str):
+    """Pick the history scheme from the material (see `_history`)."""
+    if isinstance(material, Elastic):
+        return ElasticHistory(material.instantaneous_compliance)
+    series = getattr(material, "creep_series", None)
+    if history == "direct" or series is None:
+        if scheme == "linear":
+            raise ValueError('scheme="linear" needs a material with a creep series')
+        return DirectHistory(material.creep, times)
+    return RecursiveHistory(series(), scheme)
+
+
+def _history_displacement(operator, poisson, traction, nd):
+    """`K1 traction` for the history traction `(q_x, q_y, p)` (unit modulus)."""
+    if nd == 0:
+        uz = operator.apply_normal(traction[2], poisson)
+        zeros = jnp.zeros_like(uz)
+        return jnp.stack([zeros, zeros, uz])
+    return operator.apply(traction, poisson)
+
+
 @eqx.filter_jit
-def _solve(scene: Scene, operator: HalfSpace, config: StepConfig) -> Solution:
+def _solve(scene: Scene, operator: HalfSpace, config: StepConfig, history_kind: str,
+           scheme: str) -> Solution:
     grid = scene.grid
     dtype = grid.size.dtype
     nd = config.nd
@@ -29,19 +53,26 @@ def _solve(scene: Scene, operator: HalfSpace, config: StepConfig) -> Solution:
     h0 = scene.indenter.gap(grid).astype(dtype)
     material = scene.material
     poisson = material.poisson.astype(dtype)
-    compliance = material.instantaneous_compliance.astype(dtype)
     friction = scene.friction.astype(dtype)
     area = grid.cell_area
 
     w_targets = normal_targets(scene).astype(dtype)
     t_targets, _ = tangential_targets(scene, nd)
     t_targets = t_targets.astype(dtype)
-    history = jnp.zeros((3, nx, ny), dtype)
     use_total_slip = scene.slip == "total"
+    hereditary = _history_for(material, times, history_kind, scheme)
+    steps_dt = jnp.concatenate([jnp.zeros((1,), dtype), jnp.diff(times)])
 
     def step(carry, inputs):
-        p_prev, q_prev, s_prev, p_prev2, q_prev2 = carry
-        w_target, t_target = inputs
+        p_prev, q_prev, s_prev, p_prev2, q_prev2, h_state = carry
+        w_target, t_target, k, dt = inputs
+        tau_prev = jnp.zeros((3, nx, ny), dtype).at[:nd].set(q_prev).at[2].set(p_prev)
+        prepared = hereditary.prepare(h_state, tau_prev, k, dt)
+        compliance = prepared.compliance.astype(dtype)
+        if prepared.traction is None:
+            history = jnp.zeros((3, nx, ny), dtype)
+        else:
+            history = _history_displacement(operator, poisson, prepared.traction, nd)
         # Warm start: linear extrapolation of the last two steps (exact for a
         # solution that changes linearly along the path), clipped to p >= 0.
         have_two = jnp.sum(p_prev2) > 0
@@ -58,12 +89,16 @@ def _solve(scene: Scene, operator: HalfSpace, config: StepConfig) -> Solution:
             operator, config, compliance, poisson, friction, h0, history,
             w_target, t_target, previous_slip, p_start, q_start, normal_guess=guess,
         )
-        return (res.pressure, res.shear, res.slip, p_prev, q_prev), res
+        tau_new = jnp.zeros((3, nx, ny), dtype).at[:nd].set(res.shear).at[2].set(res.pressure)
+        h_state = hereditary.update(h_state, tau_prev, tau_new, k, dt)
+        return (res.pressure, res.shear, res.slip, p_prev, q_prev, h_state), res
 
     zeros_p = jnp.zeros((nx, ny), dtype)
     zeros_q = jnp.zeros((nd, nx, ny), dtype)
-    init = (zeros_p, zeros_q, zeros_q, zeros_p, zeros_q)
-    _, res = jax.lax.scan(step, init, (w_targets, t_targets))
+    init = (zeros_p, zeros_q, zeros_q, zeros_p, zeros_q,
+            hereditary.init((3, nx, ny), dtype))
+    steps = jnp.arange(times.shape[0])
+    _, res = jax.lax.scan(step, init, (w_targets, t_targets, steps, steps_dt))
 
     nt = times.shape[0]
     shear = jnp.zeros((nt, 2, nx, ny), dtype).at[:, :nd].set(res.shear)
@@ -98,6 +133,8 @@ def solve(
     max_steps: int = 2000,
     max_rounds: int = 100,
     resync_every: int = 25,
+    history: str = "auto",
+    scheme: str = "constant",
     operator: HalfSpace | None = None,
 ) -> Solution:
     """Solve a contact scene over its time axis.
@@ -113,6 +150,12 @@ def solve(
     - `max_steps`: iteration bound of each CG solve; `max_rounds`: bound on the
       normal/tangential alternations of a coupled step.
     - `resync_every`: recompute displacements exactly every this many CG iterations.
+    - `history`: `"auto"` (default: none for an elastic material, the O(Nt) recursion
+      for a material with a creep series, the direct sum otherwise), `"recursive"` or
+      `"direct"` (the O(Nt^2) sum of the paper, Eqs. 12-13; a reference).
+    - `scheme`: `"constant"` (default; tractions piecewise constant in time, the
+      paper's scheme) or `"linear"` (piecewise linear within each step: higher order
+      in the time step).
     - `operator`: a prebuilt `jc.HalfSpace` to reuse across calls (must match the
       coupling the scene needs; built here if omitted).
 
@@ -129,6 +172,10 @@ def solve(
                         ("resync_every", resync_every)):
         if not isinstance(value, int) or value < 1:
             raise ValueError(f"{name} must be a positive integer, got {value!r}")
+    if history not in ("auto", "recursive", "direct"):
+        raise ValueError(f'history must be "auto", "recursive" or "direct", got {history!r}')
+    if scheme not in ("constant", "linear"):
+        raise ValueError(f'scheme must be "constant" or "linear", got {scheme!r}')
     if rtol is not None and not (0 < rtol < 1):
         raise ValueError(f"rtol must be in (0, 1), got {rtol!r}")
     nd = scene.tangential_directions
@@ -148,4 +195,4 @@ def solve(
     )
     if operator is None:
         operator = _operator_for(scene, nd)
-    return _solve(scene, operator, config)
+    return _solve(scene, operator, config, history, scheme)

@@ -1,0 +1,114 @@
+r"""The hereditary integral, step by step.
+
+With a constant Poisson ratio the surface displacement is
+
+    u(t_k) = K1 [ sum_{n <= k} J(t_k - t_n) (tau_n - tau_{n-1}) ]      (paper Eqs. 12-13)
+
+with `tau = (q_x, q_y, p)` the traction field, `K1` the elastic operator for unit shear
+modulus and `J` the shear creep compliance. The sum is POINTWISE in space, so each step
+needs one convolution of a combined "history traction", never one per past step. Each
+step is an elastic problem for `tau_k` with compliance `J_step` and the known history
+displacement `K1 [history traction]`.
+
+Schemes (all carry the traction of the previous step):
+
+- `ElasticHistory`: `J` constant: no history at all.
+- `RecursiveHistory`: `J(t) = J_g + sum_i J_i (1 - exp(-t / lambda_i)) + f t` (every
+  Maxwell, Zener and Prony material). Internal variables
+  `H_i(k) = sum_{n<=k} exp(-(t_k - t_n)/lambda_i) w_i(n) (tau_n - tau_{n-1})` and
+  `L(k) = sum_{n<=k} c(n) (tau_n - tau_{n-1})` are updated recursively: O(Nt) time and
+  O(m) fields of memory, exactly equal to the direct sum.
+  `scheme="constant"`: tractions piecewise constant (jumps at the `t_n`): the paper's
+  scheme, `w_i = 1`, `c = t_k - t_n`. `scheme="linear"`: tractions piecewise linear
+  in each step (the increment applied at a uniform rate over `(t_{n-1}, t_n]`):
+  `w_i = lambda_i (1 - exp(-dt_n / lambda_i)) / dt_n`, `c = t_k - t_n + dt_n / 2`, and
+  `J_step = (1 / dt) int_0^dt J`. The first entry is always a jump (nothing before it).
+- `DirectHistory`: any `J(t)` (`material.creep`), piecewise-constant scheme, the
+  O(Nt^2) sum over a buffer of all past increments. Used when a material has no
+  exponential series, and as the reference for the recursion.
+"""
+
+from typing import NamedTuple
+
+import jax.numpy as jnp
+
+
+class StepHistory(NamedTuple):
+    compliance: jnp.ndarray  # J_step, scalar
+    traction: jnp.ndarray | None  # (3, nx, ny) history traction, or None (no history)
+
+
+class ElasticHistory:
+    def __init__(self, compliance):
+        self.compliance = compliance
+
+    def init(self, shape, dtype):
+        return ()
+
+    def prepare(self, state, tau_prev, k, dt):
+        return StepHistory(self.compliance, None)
+
+    def update(self, state, tau_prev, tau_new, k, dt):
+        return state
+
+
+class RecursiveHistory:
+    def __init__(self, series, scheme: str):
+        self.glassy = series.glassy
+        self.strengths = series.strengths
+        self.times = series.times
+        self.fluidity = series.fluidity
+        self.linear = scheme == "linear"
+
+    def init(self, shape, dtype):
+        m = self.strengths.shape[0]
+        return (jnp.zeros((m, *shape), dtype), jnp.zeros(shape, dtype))
+
+    def _weights(self, dt):
+        decay = jnp.exp(-dt / self.times)
+        if not self.linear:
+            return decay, jnp.ones_like(decay)
+        safe = jnp.where(dt > 0, dt, 1.0)
+        # lambda (1 - exp(-dt/lambda)) / dt, -> 1 as dt -> 0 (a jump).
+        phi = jnp.where(dt > 0, -self.times * jnp.expm1(-dt / self.times) / safe, 1.0)
+        return decay, phi
+
+    def prepare(self, state, tau_prev, k, dt):
+        h, lin = state
+        decay, phi = self._weights(dt)
+        compliance = self.glassy + jnp.sum(self.strengths * (1 - phi))
+        hist = jnp.einsum("i,i...->...", self.strengths, phi[:, None, None, None] * tau_prev[None]
+                          - decay[:, None, None, None] * h)
+        half = 0.5 * dt if self.linear else 0.0
+        compliance = compliance + self.fluidity * half
+        hist = hist + self.fluidity * (lin + (dt - half) * tau_prev)
+        return StepHistory(compliance, hist)
+
+    def update(self, state, tau_prev, tau_new, k, dt):
+        h, lin = state
+        decay, phi = self._weights(dt)
+        increment = tau_new - tau_prev
+        h = decay[:, None, None, None] * h + phi[:, None, None, None] * increment[None]
+        half = 0.5 * dt if self.linear else 0.0
+        lin = lin + dt * tau_prev + half * increment
+        return (h, lin)
+
+
+class DirectHistory:
+    def __init__(self, creep_fn, times):
+        self.creep_fn = creep_fn
+        self.times = times
+        self.j0 = creep_fn(jnp.zeros((), times.dtype))
+
+    def init(self, shape, dtype):
+        return jnp.zeros((self.times.shape[0], *shape), dtype)
+
+    def prepare(self, buffer, tau_prev, k, dt):
+        n = jnp.arange(self.times.shape[0])
+        lag = jnp.where(n < k, self.times[k] - self.times, 0.0)
+        weights = jnp.where(n < k, self.creep_fn(lag), 0.0)
+        hist = jnp.tensordot(weights, buffer, axes=1) - self.j0 * tau_prev
+        return StepHistory(self.j0, hist)
+
+    def update(self, buffer, tau_prev, tau_new, k, dt):
+        return buffer.at[k].set(tau_new - tau_prev)
