@@ -4,7 +4,7 @@ A rigid indenter against a linear (visco)elastic half-space, by influence
 coefficients, DC-FFT and conjugate-gradient contact solvers.
 """
 
-from ._analytic import Hertz as Hertz
+from ._analytic import Hertz as Hertz, LeeRadok as LeeRadok
 from ._grid import Grid as Grid
 from ._indenter import (
     AbstractIndenter as AbstractIndenter,

@@ -41,3 +41,68 @@ class Hertz(eqx.Module):
     def pressure(self, r):
         a = self.contact_radius
         return self.peak_pressure * jnp.sqrt(jnp.maximum(1 - (r / a) ** 2, 0.0))
+
+
+class LeeRadok:
+    """Lee & Radok (1960): a rigid paraboloid on a viscoelastic half-space, contact
+    radius non-decreasing (loading).
+
+    **Arguments:**
+
+    - `radius`: sphere radius `R` [length]; `poisson`: `nu` (constant).
+    - `material`: a jaxcontact material (its `creep(t)` and `relaxation(t)` are used).
+    - `load`: callable `W(t)` [force], non-decreasing, `W(t < 0) = 0`; a jump at
+      `t = 0` is allowed.
+    - `samples`: number of sub-intervals of the Stieltjes sums (accuracy ~ 1/samples).
+
+    Formulas (true shear moduli; `E* = 2 G / (1 - nu)` in the elastic limit):
+
+    - `a(t)^3 = 3 R (1 - nu) / 8 * int_0^t J(t - s) dW(s)`;
+    - `p(r, t) = 4 / (pi R (1 - nu)) * int_0^t G(t - s) d/ds sqrt(a(s)^2 - r^2)_+ ds`
+      (paper Eq. 24 with its modulus `2 G`);
+    - approach `delta(t) = a(t)^2 / R`.
+
+    Computed with NumPy in float64 (a reference, not a differentiable function).
+    """
+
+    def __init__(self, radius, poisson, material, load, samples: int = 4000):
+        import numpy as np
+
+        self._np = np
+        self.radius = float(radius)
+        self.poisson = float(poisson)
+        self.creep = lambda t: np.asarray(material.creep(jnp.asarray(t)), dtype=float)
+        self.relaxation = lambda t: np.asarray(material.relaxation(jnp.asarray(t)), dtype=float)
+        self.load = load
+        self.samples = samples
+
+    def _radius_history(self, t):
+        """`(s, a(s))` on `samples + 1` points of `[0, t]` (one O(samples^2) sum)."""
+        np = self._np
+        s = np.linspace(0.0, float(t), self.samples + 1)
+        w = np.asarray([float(self.load(x)) for x in s])
+        dw = np.diff(w)
+        mid = 0.5 * (s[1:] + s[:-1])
+        lag = s[:, None] - mid[None, :]  # (ns, ns-1)
+        kernel = np.where(lag > 0, self.creep(np.clip(lag, 0.0, None)), 0.0)
+        integral = self.creep(s) * w[0] + kernel @ dw
+        a = (3 * self.radius * (1 - self.poisson) / 8 * np.clip(integral, 0.0, None)) ** (1 / 3)
+        return s, a
+
+    def contact_radius(self, t):
+        return float(self._radius_history(t)[1][-1])
+
+    def approach(self, t):
+        return self.contact_radius(t) ** 2 / self.radius
+
+    def pressure(self, r, t):
+        """Pressure at radii `r` (array) and time `t`."""
+        np = self._np
+        s, a = self._radius_history(t)
+        r = np.atleast_1d(np.asarray(r, dtype=float))
+        f = np.sqrt(np.clip(a[None, :] ** 2 - r[:, None] ** 2, 0.0, None))  # (nr, ns)
+        mid = 0.5 * (s[1:] + s[:-1])
+        g_mid = self.relaxation(float(t) - mid)
+        total = self.relaxation(np.asarray(float(t))) * f[:, 0] + np.sum(
+            g_mid[None] * np.diff(f, axis=1), axis=1)
+        return 4 / (np.pi * self.radius * (1 - self.poisson)) * total
