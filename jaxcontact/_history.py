@@ -77,8 +77,9 @@ class RecursiveHistory:
         h, lin = state
         decay, phi = self._weights(dt)
         compliance = self.glassy + jnp.sum(self.strengths * (1 - phi))
-        hist = jnp.einsum("i,i...->...", self.strengths, phi[:, None, None, None] * tau_prev[None]
-                          - decay[:, None, None, None] * h)
+        expand = (-1,) + (1,) * tau_prev.ndim
+        hist = jnp.einsum("i,i...->...", self.strengths,
+                          phi.reshape(expand) * tau_prev[None] - decay.reshape(expand) * h)
         half = 0.5 * dt if self.linear else 0.0
         compliance = compliance + self.fluidity * half
         hist = hist + self.fluidity * (lin + (dt - half) * tau_prev)
@@ -88,7 +89,8 @@ class RecursiveHistory:
         h, lin = state
         decay, phi = self._weights(dt)
         increment = tau_new - tau_prev
-        h = decay[:, None, None, None] * h + phi[:, None, None, None] * increment[None]
+        expand = (-1,) + (1,) * tau_prev.ndim
+        h = decay.reshape(expand) * h + phi.reshape(expand) * increment[None]
         half = 0.5 * dt if self.linear else 0.0
         lin = lin + dt * tau_prev + half * increment
         return (h, lin)
