@@ -14,7 +14,11 @@ from ._indenter import (
 from ._influence import influence_coefficients as influence_coefficients
 from ._loading import Displacement as Displacement, Force as Force
 from ._material.base import AbstractMaterial as AbstractMaterial
+from ._material.base import CreepSeries as CreepSeries
 from ._material.elastic import Elastic as Elastic
+from ._material.maxwell import Maxwell as Maxwell
+from ._material.prony import Prony as Prony
+from ._material.zener import Zener as Zener
 from ._operator import HalfSpace as HalfSpace
 from ._scene import Scene as Scene
 from ._solution import Solution as Solution

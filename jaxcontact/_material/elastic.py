@@ -4,7 +4,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
 from .. import _validate
-from .base import AbstractMaterial
+from .base import AbstractMaterial, CreepSeries
 
 
 class Elastic(AbstractMaterial):
@@ -30,3 +30,8 @@ class Elastic(AbstractMaterial):
 
     def creep(self, t: ArrayLike) -> Float[Array, "..."]:
         return jnp.broadcast_to(1 / self.shear_modulus, jnp.shape(t))
+
+    def creep_series(self) -> CreepSeries:
+        glassy = 1 / self.shear_modulus
+        empty = jnp.zeros((0,), dtype=glassy.dtype)
+        return CreepSeries(glassy, empty, empty, jnp.zeros((), dtype=glassy.dtype))
