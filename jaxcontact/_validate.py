@@ -37,9 +37,11 @@ def as_float_array(name: str, value, dtype=None) -> jax.Array:
 
 def _check(name: str, value: jax.Array, bad, what: str) -> jax.Array:
     """Raise (concrete) or attach a runtime error (traced) where `bad(value)` holds."""
-    if is_traced(value):
-        return eqx.error_if(value, bad(value), f"{name} must be {what}")
-    bad_mask = np.asarray(bad(value))
+    mask = bad(value)
+    # Inside `jit` even a concrete array's comparison is staged: check the result.
+    if is_traced(value) or is_traced(mask):
+        return eqx.error_if(value, mask, f"{name} must be {what}")
+    bad_mask = np.asarray(mask)
     if bad_mask.any():
         shown = np.asarray(value)
         shown = shown.item() if shown.size == 1 else shown
