@@ -249,7 +249,7 @@ def tangential_cg(
         w_new, ds_new, res = jax.lax.cond(certify, exact, lambda: (w_new, ds_new, res))
         return dict(
             q=q_new, w=w_new, ds=ds_new, t=t, g_old=g_norm,
-            restart=changed, it=it, residual=res,
+            restart=changed | (certify & (res > rtol)), it=it, residual=res,
             applications=s["applications"] + 1 + need_exact + certify,
         )
 
