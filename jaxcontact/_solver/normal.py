@@ -175,14 +175,15 @@ def polonsky_keer(
     target = jnp.asarray(target, dtype)
 
     # ---- Initial set-up -----------------------------------------------------------
+    # Local compliance: the displacement of a cell under its own unit pressure. It
+    # gives a pressure that closes an interference locally: the start of a
+    # displacement-controlled solve from p = 0, and the step for re-entering cells when
+    # the CG step vanishes (e.g. a few symmetric cells with equal gaps).
+    unit = jnp.zeros_like(h).at[h.shape[0] // 2, h.shape[1] // 2].set(1.0)
+    k00 = apply_fn(unit)[h.shape[0] // 2, h.shape[1] // 2]
     if load_control:
         p0 = jnp.full_like(h, 1.0) if p0 is None else p0
     else:
-        # Local stiffness estimate: the displacement of a cell under its own unit
-        # pressure; a pressure that would close the interference locally. Used when
-        # no (non-zero) guess is given: from p = 0 the CG could not start.
-        unit = jnp.zeros_like(h).at[h.shape[0] // 2, h.shape[1] // 2].set(1.0)
-        k00 = apply_fn(unit)[h.shape[0] // 2, h.shape[1] // 2]
         local = jnp.maximum(target - h, 0) / k00
         p0 = local if p0 is None else jnp.where(jnp.sum(p0) > 0, p0, local)
     p0 = jnp.maximum(jnp.asarray(p0, dtype), 0)
@@ -206,7 +207,7 @@ def polonsky_keer(
         restart=jnp.array(True),
         it=jnp.array(0),
         residual=res0,
-        applications=jnp.array(1 if load_control else 2),
+        applications=jnp.array(2),
     )
 
     # ---- Main loop ------------------------------------------------------------------
@@ -232,7 +233,8 @@ def polonsky_keer(
         p_new = jnp.maximum(p_step, 0)
         # Re-entry: cells out of contact that penetrate get pressure.
         overlap = (~contact) & (g < 0)
-        p_new = jnp.where(overlap, p_new - tau * g, p_new)
+        tau_overlap = jnp.where(tau > 0, tau, 1 / k00)
+        p_new = jnp.where(overlap, p_new - tau_overlap * g, p_new)
         changed = jnp.any(clipped & contact) | jnp.any(overlap)
         if load_control:
             p_new = jnp.where(jnp.sum(p_new) > 0, p_new, p0)
