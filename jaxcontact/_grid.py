@@ -2,6 +2,7 @@
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Float
 
 from . import _validate
@@ -49,6 +50,8 @@ class Grid(eqx.Module):
             raise ValueError(f"size must be a scalar or (Lx, Ly), got shape {size.shape}")
         self.shape = shape
         self.size = _validate.positive("size", size)
+        if not isinstance(periodic, (bool, np.bool_)):
+            raise TypeError(f"periodic must be True or False, got {periodic!r}")
         self.periodic = bool(periodic)
 
     @property

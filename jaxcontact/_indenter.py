@@ -35,7 +35,7 @@ class Sphere(AbstractIndenter):
     centre: Float[Array, "2"]
 
     def __init__(self, radius, centre=(0.0, 0.0)):
-        self.radius = _validate.positive("radius", radius)
+        self.radius = _validate.scalar("radius", _validate.positive("radius", radius))
         if not hasattr(centre, "dtype"):
             centre = jnp.asarray(centre, dtype=self.radius.dtype)
         centre = _validate.finite("centre", centre)

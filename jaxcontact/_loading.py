@@ -9,6 +9,16 @@ from jaxtyping import Array, Float
 from . import _validate
 
 
+def _one_dim(name, value):
+    value = _validate.finite(name, value)
+    if value.ndim > 1:
+        raise ValueError(
+            f"{name} must be a scalar or a 1-D array (one value per time), got shape "
+            f"{value.shape}"
+        )
+    return value
+
+
 def _program_values(name, value, times):
     if callable(value):
         out = jnp.asarray(value(times), dtype=times.dtype)
@@ -37,7 +47,7 @@ class Force(eqx.Module):
     value: Float[Array, "..."] | Callable
 
     def __init__(self, value):
-        self.value = value if callable(value) else _validate.finite("Force value", value)
+        self.value = value if callable(value) else _one_dim("Force value", value)
 
     def values(self, times: Float[Array, " nt"]) -> Float[Array, " nt"]:
         """The force at each time, shape `(nt,)`."""
@@ -58,7 +68,9 @@ class Displacement(eqx.Module):
     value: Float[Array, "..."] | Callable
 
     def __init__(self, value):
-        self.value = value if callable(value) else _validate.finite("Displacement value", value)
+        self.value = (
+            value if callable(value) else _one_dim("Displacement value", value)
+        )
 
     def values(self, times: Float[Array, " nt"]) -> Float[Array, " nt"]:
         """The displacement at each time, shape `(nt,)`."""

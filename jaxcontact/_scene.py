@@ -1,13 +1,16 @@
 """`jc.Scene`: everything that defines a contact problem over time."""
 
+import warnings
+
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
 from . import _validate
 from ._grid import Grid
-from ._indenter import AbstractIndenter, as_indenter
+from ._indenter import AbstractIndenter, Sphere, Surface, as_indenter
 from ._loading import Displacement, Force
 from ._material.base import AbstractMaterial
 
@@ -26,6 +29,82 @@ def _check_program(name, program, allow_none):
             + f", got {program!r}"
         )
     return program
+
+
+def _concrete_values(name, program, times):
+    """The program's `(nt,)` values, checked; `None` when they are traced.
+
+    The shape is checked always (it is static); finiteness only for concrete values
+    (a traced callable's output cannot be inspected here).
+    """
+    if program is None:
+        return None
+    eager = not _validate.is_traced((times, program.value))
+    try:
+        if eager:
+            with jax.ensure_compile_time_eval():
+                values = program.values(times)
+        else:
+            values = program.values(times)
+    except ValueError as exc:
+        raise ValueError(f"{name}: {exc}") from None
+    if _validate.is_traced(values):
+        return None
+    values = np.asarray(values)
+    if not np.isfinite(values).all():
+        raise ValueError(f"{name} must be finite (no NaN or inf) at every time, got {values!r}")
+    return values
+
+
+def expected_contact_radius(indenter, grid, material, times, normal, values):
+    """Upper estimate of the largest contact radius of a `Sphere` [length], or `None`.
+
+    Displacement control: `a = sqrt(R delta_max)` (Hertz and Lee-Radok alike). Load
+    control: Hertz with the largest load and the compliance `J(t_end - t_0)` (for a
+    non-negative load and a non-decreasing `J`, `(J * dW)(t) <= J(t - t_0) W_max`, so
+    this bounds the Lee-Radok radius). `None` when the inputs are traced or the
+    indenter is not a sphere.
+    """
+    if not isinstance(indenter, Sphere) or values is None:
+        return None
+    leaves = (indenter, material, times, grid.size)
+    if _validate.is_traced(leaves):
+        return None
+    radius = float(indenter.radius)
+    peak = float(np.max(values)) if values.size else 0.0
+    if peak <= 0:
+        return 0.0
+    if isinstance(normal, Displacement):
+        return float(np.sqrt(radius * peak))
+    with jax.ensure_compile_time_eval():
+        span = jnp.asarray(times[-1] - times[0])
+        compliance = float(material.creep(span))
+        poisson = float(material.poisson)
+    effective_modulus = 2 / (compliance * (1 - poisson))
+    return float((3 * peak * radius / (4 * effective_modulus)) ** (1 / 3))
+
+
+def warn_if_too_large(indenter, grid, radius_estimate, stacklevel=3):
+    """Warn (`jc.EdgeContactWarning`) when a sphere's contact cannot fit on the grid.
+
+    The room is the distance from the sphere's centre to the nearest edge of a
+    non-periodic grid, less one cell (the outer ring).
+    """
+    if radius_estimate is None or grid.periodic:
+        return
+    half = np.asarray(grid.size) / 2
+    spacing = np.asarray(grid.spacing)
+    room = float(np.min(half - np.abs(np.asarray(indenter.centre)) - spacing))
+    if radius_estimate > room:
+        warnings.warn(
+            _validate.EdgeContactWarning(
+                f"the expected contact radius {radius_estimate:.4g} exceeds the room "
+                f"{room:.4g} between the sphere's centre and the outer ring of cells of "
+                f"the grid (size {half * 2}): the contact will reach the domain edge and "
+                "the solution will be truncated. Enlarge grid.size or lower the load."
+            ),
+            stacklevel=stacklevel,
+        )
 
 
 class Scene(eqx.Module):
@@ -50,6 +129,21 @@ class Scene(eqx.Module):
       since t = 0).
 
     All arguments are stored as fields of the same name.
+
+    **Raises:** `TypeError` for arguments of the wrong kind; `ValueError` (naming the
+    argument and the bad value) for NaN/inf, negative friction, non-scalar friction,
+    empty or non-increasing `times`, a load program whose length differs from `times`
+    (or a callable returning NaN), a negative normal force, a surface whose shape differs
+    from the grid, an unknown `coupling` or `slip`. Traced values (a scene built inside
+    `jit`/`vmap`) skip the value checks that cannot be staged.
+
+    **Warns:** `jc.EdgeContactWarning` when the indenter is a `jc.Sphere` on a
+    non-periodic grid and an upper estimate of its largest contact radius (Hertz with the
+    largest normal force and the compliance `J(t_end - t_0)`, or `sqrt(R delta_max)`
+    under displacement control) does not fit inside the grid less its outer ring of
+    cells: the contact would be truncated by the domain. A warning, not an error: the
+    estimate is an upper bound (coarse for a soft fluid), and a solved scene carries the
+    exact flag `Solution.edge_contact`.
     """
 
     grid: Grid
@@ -89,12 +183,19 @@ class Scene(eqx.Module):
             times = times[None]
         if times.ndim != 1:
             raise ValueError(f"times must be a 1-D array, got shape {times.shape}")
+        if times.shape[0] == 0:
+            raise ValueError("times must hold at least one time, got an empty array")
         if not _validate.is_traced(times) and times.shape[0] > 1:
             steps = np.diff(np.asarray(times))
             if not (steps > 0).all():
                 raise ValueError(f"times must be strictly increasing, got {np.asarray(times)!r}")
         self.grid = grid
         self.indenter = as_indenter(indenter)
+        if isinstance(self.indenter, Surface) and self.indenter.heights.shape != grid.shape:
+            raise ValueError(
+                f"indenter: the surface heights have shape {self.indenter.heights.shape}"
+                f" but the grid is {grid.shape}"
+            )
         self.material = material
         self.times = times
         self.normal = _check_program("normal", normal, allow_none=False)
@@ -102,11 +203,23 @@ class Scene(eqx.Module):
         self.y = _check_program("y", y, allow_none=True)
         if coupling == "x" and y is not None:
             raise ValueError('coupling="x" is semi-coupled (q_y = 0): it takes no y input')
-        self.friction = _validate.non_negative("friction", friction)
+        self.friction = _validate.scalar(
+            "friction", _validate.non_negative("friction", friction)
+        )
         self.coupling = coupling
         self.slip = slip
-        if isinstance(self.normal, Force) and not callable(self.normal.value):
-            _validate.non_negative("normal force", self.normal.value)
+        normal_values = _concrete_values("normal", self.normal, times)
+        _concrete_values("x", self.x, times)
+        _concrete_values("y", self.y, times)
+        if isinstance(self.normal, Force):
+            if normal_values is not None:
+                _validate.non_negative("normal force", normal_values)
+            elif not callable(self.normal.value):
+                _validate.non_negative("normal force", self.normal.value)
+        estimate = expected_contact_radius(
+            self.indenter, grid, material, times, self.normal, normal_values
+        )
+        warn_if_too_large(self.indenter, grid, estimate)
 
     @property
     def tangential_directions(self) -> int:

@@ -1,6 +1,7 @@
 """`jc.Solution`: the result of `jc.solve`, with time as the leading axis."""
 
 import equinox as eqx
+import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
 
@@ -22,6 +23,7 @@ class Solution(eqx.Module):
     - `sliding`: `(nt,)` gross sliding (contact but no stick cell).
     - `converged`, `iterations`, `rounds`, `residual`: `(nt,)` per-step solver status
       (inner CG iterations summed over the normal/tangential rounds).
+    - `edge_contact` (property): `(nt,)` contact reaches the outer ring of cells.
     """
 
     times: Float[Array, " nt"]
@@ -39,3 +41,20 @@ class Solution(eqx.Module):
     iterations: Int[Array, " nt"]
     rounds: Int[Array, " nt"]
     residual: Float[Array, " nt"]
+
+    @property
+    def edge_contact(self) -> Bool[Array, " nt"]:
+        """`(nt,)`: some contact cell lies in the outer ring of cells of the grid.
+
+        On a non-periodic grid this means the contact area reached the edge of the
+        domain, so the solution of the isolated contact is truncated (wrong): enlarge
+        the grid. (On a periodic grid there is no edge; ignore it.)
+        """
+        return edge_ring(self.contact)
+
+
+def edge_ring(contact: Bool[Array, "... nx ny"]) -> Bool[Array, "..."]:
+    """True where any cell of the outer ring of the last two axes is set."""
+    rows = jnp.any(contact[..., 0, :], axis=-1) | jnp.any(contact[..., -1, :], axis=-1)
+    cols = jnp.any(contact[..., :, 0], axis=-1) | jnp.any(contact[..., :, -1], axis=-1)
+    return rows | cols

@@ -4,6 +4,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
+from . import _validate
 from ._history import DirectHistory, ElasticHistory, RecursiveHistory
 from ._loading import Force
 from ._material.elastic import Elastic
@@ -170,14 +171,30 @@ def solve(
         raise TypeError(f"scene must be a jc.Scene, got {scene!r}")
     for name, value in (("max_steps", max_steps), ("max_rounds", max_rounds),
                         ("resync_every", resync_every)):
-        if not isinstance(value, int) or value < 1:
-            raise ValueError(f"{name} must be a positive integer, got {value!r}")
+        _validate.positive_int(name, value)  # TypeError / ValueError naming it
     if history not in ("auto", "recursive", "direct"):
         raise ValueError(f'history must be "auto", "recursive" or "direct", got {history!r}')
     if scheme not in ("constant", "linear"):
         raise ValueError(f'scheme must be "constant" or "linear", got {scheme!r}')
-    if rtol is not None and not (0 < rtol < 1):
-        raise ValueError(f"rtol must be in (0, 1), got {rtol!r}")
+    if rtol is not None:
+        _validate.tolerance("rtol", rtol)
+    if operator is not None:
+        if not isinstance(operator, HalfSpace):
+            raise TypeError(f"operator must be a jc.HalfSpace, got {operator!r}")
+        g_op, g_sc = operator.grid, scene.grid
+        if g_op.shape != g_sc.shape or g_op.periodic != g_sc.periodic:
+            raise ValueError(
+                f"operator was built for a {g_op.shape} grid (periodic={g_op.periodic}),"
+                f" the scene's grid is {g_sc.shape} (periodic={g_sc.periodic})"
+            )
+        n_dir = scene.tangential_directions
+        if n_dir > 0 and (operator.coupling != scene.coupling
+                          or (n_dir == 2 and not operator.tangential_y)):
+            raise ValueError(
+                f"operator has coupling={operator.coupling!r}, tangential_y="
+                f"{operator.tangential_y}; the scene needs coupling={scene.coupling!r}"
+                f"{' with tangential_y=True' if n_dir == 2 else ''}"
+            )
     nd = scene.tangential_directions
     dtype = scene.grid.size.dtype
     if rtol is None:

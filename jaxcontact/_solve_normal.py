@@ -2,13 +2,17 @@
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
 from . import _validate
 from ._grid import Grid
+from ._scene import expected_contact_radius, warn_if_too_large
 from ._indenter import AbstractIndenter, as_indenter
 from ._material.base import AbstractMaterial
+from ._loading import Displacement, Force
 from ._operator import HalfSpace
+from ._solution import edge_ring
 from ._solver.normal import PolonskyKeer, hertzian_guess, polonsky_keer
 
 
@@ -24,6 +28,8 @@ class NormalSolution(eqx.Module):
     - `displacement`: `(nx, ny)` normal surface displacement `u_z` [length].
     - `iterations`, `residual`, `converged`: solver statistics (see `jc.PolonskyKeer`).
     - `applications`: number of operator applications (padded FFT convolutions) used.
+    - `edge_contact` (property): contact reaches the outer ring of cells (on a
+      non-periodic grid: the contact is truncated by the domain; enlarge the grid).
     """
 
     pressure: Float[Array, "nx ny"]
@@ -36,6 +42,11 @@ class NormalSolution(eqx.Module):
     residual: Float[Array, ""]
     converged: Bool[Array, ""]
     applications: Int[Array, ""]
+
+    @property
+    def edge_contact(self) -> Bool[Array, ""]:
+        """Some contact cell lies in the outer ring of cells of the grid."""
+        return edge_ring(self.contact)
 
 
 @eqx.filter_jit
@@ -105,9 +116,15 @@ def solve_normal(
     - `operator`: a prebuilt `jc.HalfSpace(grid)`, to reuse its kernel spectra across
       calls (built here if omitted).
 
+    **Warns:** `jc.EdgeContactWarning` when the indenter is a `jc.Sphere` whose Hertz
+    contact radius (or `sqrt(R delta)`) does not fit inside the grid less its outer ring
+    of cells; `NormalSolution.edge_contact` flags the solved contact exactly.
+
     **Returns:** a `jc.NormalSolution`. The solve is jitted: a second call with new
     values of the same shapes reuses the compiled program.
     """
+    if not isinstance(grid, Grid):
+        raise TypeError(f"grid must be a jc.Grid, got {grid!r}")
     if (force is None) == (approach is None):
         raise ValueError("give exactly one of force= (load control) or approach= "
                          f"(displacement control); got force={force!r}, approach={approach!r}")
@@ -121,6 +138,8 @@ def solve_normal(
         raise ValueError(f"the indenter's gap has shape {h.shape}, the grid is {grid.shape}")
     if operator is None:
         operator = HalfSpace(grid, "normal")
+    elif not isinstance(operator, HalfSpace):
+        raise TypeError(f"operator must be a jc.HalfSpace, got {operator!r}")
     elif operator.grid.shape != grid.shape or operator.grid.periodic != grid.periodic:
         raise ValueError("operator was built for a different grid")
     if force is not None:
@@ -131,6 +150,13 @@ def solve_normal(
         load_control = False
     if target.shape != ():
         raise ValueError(f"force/approach must be a scalar, got shape {target.shape}")
+    if not _validate.is_traced((target, material, grid.size)):
+        program = Force(target) if load_control else Displacement(target)
+        times = jnp.zeros((1,), dtype=target.dtype)  # one instantaneous step: J(0)
+        estimate = expected_contact_radius(
+            indenter, grid, material, times, program, np.asarray(target).reshape(1)
+        )
+        warn_if_too_large(indenter, grid, estimate)
     dtype = jnp.result_type(h.dtype, grid.size.dtype)
     compliance = material.instantaneous_compliance
     return _solve(

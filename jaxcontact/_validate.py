@@ -69,3 +69,40 @@ def poisson_ratio(name: str, value) -> jax.Array:
     return _check(
         name, value, lambda v: ~((v > -1) & (v <= 0.5)), "in the interval (-1, 0.5]"
     )
+
+
+def scalar(name: str, value: jax.Array) -> jax.Array:
+    """Reject arrays of rank > 0 (under `vmap` a batched scalar has rank 0)."""
+    if jnp.ndim(value) != 0:
+        raise ValueError(
+            f"{name} must be a scalar, got an array of shape {jnp.shape(value)}"
+        )
+    return value
+
+
+def positive_int(name: str, value) -> int:
+    """A Python integer >= 1 (booleans rejected): iteration bounds and the like."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"{name} must be a positive integer, got {value!r}")
+    if value < 1:
+        raise ValueError(f"{name} must be a positive integer, got {value!r}")
+    return int(value)
+
+
+def tolerance(name: str, value) -> float:
+    """A Python real number in the open interval (0, 1)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(
+        value, (int, float, np.integer, np.floating)
+    ):
+        raise TypeError(f"{name} must be a real number in (0, 1), got {value!r}")
+    if not (0 < value < 1):
+        raise ValueError(f"{name} must be in (0, 1), got {value!r}")
+    return float(value)
+
+
+class EdgeContactWarning(UserWarning):
+    """The contact reaches (or is expected to reach) the edge of a non-periodic grid.
+
+    The solution of an isolated contact is then truncated by the domain and wrong:
+    enlarge the grid's `size` (keep the cell size) or lower the load.
+    """

@@ -22,8 +22,9 @@ class Elastic(AbstractMaterial):
     poisson: Float[Array, ""]
 
     def __init__(self, shear_modulus, poisson):
-        self.shear_modulus = _validate.positive("shear_modulus", shear_modulus)
-        self.poisson = _validate.poisson_ratio("poisson", poisson)
+        shear_modulus = _validate.positive("shear_modulus", shear_modulus)
+        self.shear_modulus = _validate.scalar("shear_modulus", shear_modulus)
+        self.poisson = _validate.scalar("poisson", _validate.poisson_ratio("poisson", poisson))
 
     def relaxation(self, t: ArrayLike) -> Float[Array, "..."]:
         return jnp.broadcast_to(self.shear_modulus, jnp.shape(t))
