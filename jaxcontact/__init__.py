@@ -25,6 +25,7 @@ from ._solution import Solution as Solution
 from ._solve import solve as solve
 from ._solve_normal import NormalSolution as NormalSolution, solve_normal as solve_normal
 from ._solver.normal import PolonskyKeer as PolonskyKeer
+from . import presets as presets
 from ._validate import EdgeContactWarning as EdgeContactWarning
 
 

@@ -1,0 +1,434 @@
+"""Ready-made scenes: every numerical study of the paper (Wang, de Boer & Ghanbarzadeh,
+sections 3 and 4), plus a plain Hertz indentation.
+
+Each preset is a function `jc.presets.<name>(n=..., steps=..., ...)` that returns a
+`jc.Scene`. `n` is the number of grid cells per side (the paper uses 256); `steps` is
+the number of time points including `t = 0` (the paper's "time steps"; `None` picks the
+paper's value, or ours where the paper gives none). `dtype` (e.g. `jnp.float32`) casts
+every floating-point leaf of the scene; `None` keeps JAX's default float type.
+
+Units are SI (m, N, Pa, s). Moduli are TRUE shear moduli: the paper's tables and
+equations list twice the shear modulus (its published a0 and p0 come out only with
+`E* = G_paper / (1 - nu)`; see DESIGN.md section 1), so every modulus of the paper is
+halved here, every compliance doubled, and viscosities halved (relaxation times are
+unchanged).
+
+Presets with friction use the paper's slip law (`slip="total"`, its Eq. 16) unless told
+otherwise (`slip="incremental"`, path dependent, is `jc.Scene`'s default).
+
+`available()` lists the names with one-line descriptions; `build(name, **kwargs)` calls
+one by name.
+"""
+
+import inspect
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ._analytic import Hertz
+from ._grid import Grid
+from ._indenter import Sphere
+from ._loading import Displacement, Force
+from ._material.elastic import Elastic
+from ._material.maxwell import Maxwell
+from ._material.prony import Prony
+from ._material.zener import Zener
+from ._scene import Scene
+
+
+# ---- The paper's parameters, converted to true shear moduli (SI) ----------------------
+
+# Table 1 (section 3): Maxwell model, step load.
+TABLE1 = dict(
+    radius=3.5e-3,  # m
+    force=100.0,  # N
+    shear_modulus=81.92e9 / 2,  # Pa (paper: G = 81.92 GPa, twice the shear modulus)
+    viscosity=81.92e9 / 2,  # Pa s (paper: 81.92 GPa s); tau = eta / G = 1 s
+    poisson=0.5,
+    domain=512e-6,  # m, square
+    a0=117e-6,  # m, quoted Hertz contact radius
+    p0=3487e6,  # Pa, quoted Hertz peak pressure
+)
+
+# Table 2 (section 4.1) and section 4.2: Zener model (paper Eqs. 29-30).
+TABLE2 = dict(
+    radius=10e-3,  # m
+    force=0.15,  # N
+    mu_inf=3.86e6 / 2,  # Pa (paper: 3.86 MPa, twice the shear modulus)
+    tau=0.01,  # s, the tau of Eqs. 29-30 (the retardation time; see jc.Zener)
+    poisson=0.3,
+    domain_a0=5.5,  # the square side, in units of a0
+    a0=588.7e-6,  # m, quoted Hertz contact radius
+    p0=0.2067e6,  # Pa, quoted Hertz peak pressure
+)
+
+# PMMA (paper Eqs. 26-28, from Chen et al. 2011) and the fictitious material (Eq. 31).
+PMMA = dict(
+    g_inf=1429.71e6 / 2,  # Pa (paper Eq. 27 in MPa, twice the shear modulus)
+    g=(184.62e6 / 2, 191.06e6 / 2),  # Pa
+    tau=(8.93, 117.96),  # s, relaxation times
+    poisson=0.38,
+    radius=3.5e-3,  # m
+    domain=1280e-6,  # m, square
+)
+FICTITIOUS = dict(
+    # Eq. 31: Phi(t) = 0.699 - 0.5595 exp(-t/133.869) - 0.02 exp(-t/9.9404) 1/GPa, in
+    # the paper's convention (compliance of 2G): the true shear compliance is twice it.
+    j_inf=2 * 0.699e-9,  # 1/Pa
+    j=(2 * 0.5595e-9, 2 * 0.02e-9),  # 1/Pa
+    tau=(133.869, 9.9404),  # s, retardation times
+    poisson=0.38,
+)
+
+# Section 4.2: friction and the constant inputs of the DC and relaxation cases. The
+# paper prints delta_z = 34.358 and delta_x = 6.1987 without a unit; micrometres fit
+# (the Hertz approach a0^2 / R of Table 2 is 34.66 um).
+FRICTION = 0.30
+DELTA_X = 6.1987e-6  # m
+DELTA_Z = 34.358e-6  # m
+
+
+# ---- Helpers -------------------------------------------------------------------------
+
+
+def _check_int(name, value, minimum):
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"{name} must be an integer, got {value!r}")
+    if value < minimum:
+        raise ValueError(f"{name} must be >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def _check_positive(name, value):
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.number)):
+        raise TypeError(f"{name} must be a real number, got {value!r}")
+    if not (np.isfinite(value) and value > 0):
+        raise ValueError(f"{name} must be finite and > 0, got {value!r}")
+    return float(value)
+
+
+def _check_choice(name, value, choices):
+    if value not in choices:
+        raise ValueError(f"{name} must be one of {choices}, got {value!r}")
+    return value
+
+
+def _steps(steps, default):
+    return default if steps is None else _check_int("steps", steps, 2)
+
+
+def _ratio(ratio):
+    ratio = _check_positive("ratio", ratio)
+    if ratio < 1:
+        raise ValueError(
+            f"ratio (mu_inf / mu_0) must be >= 1 for a viscoelastic solid, got {ratio!r}"
+        )
+    return ratio
+
+
+def _cast(scene: Scene, dtype) -> Scene:
+    """Cast every floating-point array leaf of `scene` to `dtype` (`None`: no cast)."""
+    if dtype is None:
+        return scene
+    dtype = jnp.dtype(dtype)
+    if not jnp.issubdtype(dtype, jnp.floating):
+        raise ValueError(f"dtype must be a floating-point type, got {dtype!r}")
+
+    def cast(leaf):
+        if isinstance(leaf, jax.Array) and jnp.issubdtype(leaf.dtype, jnp.floating):
+            return leaf.astype(dtype)
+        return leaf
+
+    return jax.tree_util.tree_map(cast, scene)
+
+
+def _times(end, steps):
+    return np.linspace(0.0, end, steps)
+
+
+def table2_hertz() -> Hertz:
+    """The Hertz reference of Table 2 (instantaneous modulus, W = 0.15 N)."""
+    t2 = TABLE2
+    return Hertz(t2["radius"], t2["force"], t2["mu_inf"], t2["poisson"])
+
+
+def zener_material(ratio) -> Zener:
+    """The Zener material of Table 2 with `mu_inf / mu_0 = ratio`."""
+    t2 = TABLE2
+    return Zener(t2["mu_inf"], t2["mu_inf"] / _ratio(ratio), t2["tau"], t2["poisson"])
+
+
+def pmma_material() -> Prony:
+    """PMMA, paper Eq. 27 (halved: true shear moduli)."""
+    return Prony(PMMA["g_inf"], np.asarray(PMMA["g"]), np.asarray(PMMA["tau"]),
+                 PMMA["poisson"])
+
+
+def fictitious_material() -> Prony:
+    """The fictitious material of the paper's Eq. 31 (compliance doubled: true shear)."""
+    f = FICTITIOUS
+    return Prony.from_creep(f["j_inf"], np.asarray(f["j"]), np.asarray(f["tau"]),
+                            f["poisson"])
+
+
+def _table2_grid(n):
+    a0 = float(table2_hertz().contact_radius)
+    return Grid((n, n), TABLE2["domain_a0"] * a0)
+
+
+def _table2_scene(n, steps, duration, ratio, normal, x=None, coupling="none",
+                  friction=0.0, slip="total", dtype=None):
+    times = _times(duration * TABLE2["tau"], steps)
+    scene = Scene(
+        _table2_grid(n), Sphere(TABLE2["radius"]), zener_material(ratio), times,
+        normal=normal, x=x, y=None, friction=friction, coupling=coupling, slip=slip,
+    )
+    return _cast(scene, dtype)
+
+
+# ---- Presets -------------------------------------------------------------------------
+
+
+def hertz(n: int = 256, steps: int = 1, *, dtype=None) -> Scene:
+    """Elastic Hertz indentation (the `jaxcontact run hertz` example), no friction.
+
+    Rigid sphere R = 10 mm on an elastic half-space G = 1.93 MPa (the instantaneous
+    modulus of Table 2, converted), nu = 0.3, load W = 0.15 N held over `steps` time
+    points on t in [0, 1] s; the grid covers 4 a x 4 a with a = 588.7 um the Hertz
+    contact radius. Not a figure of the paper: the elastic check of Table 2's a0, p0.
+    """
+    n = _check_int("n", n, 2)
+    steps = _check_int("steps", steps, 1)
+    t2 = TABLE2
+    a = float(table2_hertz().contact_radius)
+    times = _times(1.0, steps) if steps > 1 else np.zeros(1)
+    scene = Scene(
+        Grid((n, n), 4 * a), Sphere(t2["radius"]), Elastic(t2["mu_inf"], t2["poisson"]),
+        times, normal=Force(t2["force"]),
+    )
+    return _cast(scene, dtype)
+
+
+def maxwell(n: int = 256, steps: int | None = None, *, duration: float = 2.0,
+            dtype=None) -> Scene:
+    """Maxwell half-space, step load (Table 1; Figs. 4-5, and 10-11 with duration=6).
+
+    Paper: R = 3.5 mm, G = 81.92 GPa and eta = 81.92 GPa s (paper convention: here
+    G = eta / (1 s) = 40.96 GPa), tau = 1 s, nu = 0.5, W = 100 N applied at t = 0 and
+    held; a0 = 117 um, p0 = 3487 MPa; 512 um x 512 um, 256 x 256 cells; T = 2 tau in
+    101 time points (Figs. 4-5). Figs. 10-11 extend T to 6 tau; the paper does not give
+    the number of points there: `steps=None` keeps its time step (50 points per tau).
+
+    - `duration`: T in units of tau (> 0).
+    """
+    n = _check_int("n", n, 2)
+    duration = _check_positive("duration", duration)
+    steps = _steps(steps, int(round(50 * duration)) + 1)
+    t1 = TABLE1
+    material = Maxwell(t1["shear_modulus"], t1["viscosity"], t1["poisson"])
+    tau = t1["viscosity"] / t1["shear_modulus"]
+    scene = Scene(
+        Grid((n, n), t1["domain"]), Sphere(t1["radius"]), material,
+        _times(duration * tau, steps), normal=Force(t1["force"]),
+    )
+    return _cast(scene, dtype)
+
+
+def pmma_triangle(n: int = 256, steps: int | None = None, *, dtype=None) -> Scene:
+    """PMMA under the triangular load of Eq. 26 (Fig. 6, against Chen et al.).
+
+    Paper: W(t) = 10 t H(t) - 20 (t - 10) H(t - 10) N (peak 100 N at t = 10 s, back to
+    0 at t = 20 s); PMMA relaxation modulus Eq. 27, G(t) = 1429.71 + 184.62 e^{-t/8.93}
+    + 191.06 e^{-t/117.96} MPa in the paper's convention (halved here), nu = 0.38;
+    R = 3.5 mm; 1280 um x 1280 um, 256 x 256 cells; T = 20 s in 41 time points. No
+    coupling (frictionless).
+    """
+    n = _check_int("n", n, 2)
+    steps = _steps(steps, 41)
+    times = _times(20.0, steps)
+    load = 10 * times - 20 * (times - 10) * (times > 10)
+    scene = Scene(
+        Grid((n, n), PMMA["domain"]), Sphere(PMMA["radius"]), pmma_material(), times,
+        normal=Force(load),
+    )
+    return _cast(scene, dtype)
+
+
+def zener(ratio: float = 4.0, n: int = 256, steps: int | None = None, *,
+          duration: float = 3.0, dtype=None) -> Scene:
+    """Zener half-space, step load (Table 2; Figs. 8-9: ratio = 2, 4, 8, 10).
+
+    Fig. 8e: ratio 10 with more `steps`; Fig. 8f: `duration=6`.
+
+    Paper: W = 0.15 N at t = 0, held; R = 10 mm; mu_inf = 3.86 MPa (paper convention:
+    1.93 MPa here), mu_0 = mu_inf / ratio, tau = 0.01 s (Eqs. 29-30), nu = 0.3;
+    a0 = 588.7 um, p0 = 0.2067 MPa; 5.5 a0 x 5.5 a0, 256 x 256 cells; T = 3 tau, the
+    number of time points "depending on the ratio" (not given): `steps=None` takes 20
+    points per tau, plus one.
+
+    - `ratio`: mu_inf / mu_0 (>= 1).
+    - `duration`: T in units of tau (> 0).
+    """
+    n = _check_int("n", n, 2)
+    duration = _check_positive("duration", duration)
+    steps = _steps(steps, int(round(20 * duration)) + 1)
+    return _table2_scene(n, steps, duration, ratio, Force(TABLE2["force"]), dtype=dtype)
+
+
+def weichert(material: str = "pmma", n: int = 256, steps: int | None = None, *,
+             dtype=None) -> Scene:
+    """PMMA or the fictitious material of Eq. 31, 10 N step load for 600 s (Fig. 12).
+
+    Paper: `material="pmma"` (Eq. 27/28; Fig. 12a, 61 time points) or `"fictitious"`
+    (Eq. 31, creep compliance 0.699 - 0.5595 e^{-t/133.869} - 0.02 e^{-t/9.9404} 1/GPa
+    in the paper's convention, doubled here; Fig. 12b, 121 time points); nu = 0.38,
+    R = 3.5 mm, 1280 um x 1280 um, 256 x 256 cells.
+    """
+    _check_choice("material", material, ("pmma", "fictitious"))
+    n = _check_int("n", n, 2)
+    steps = _steps(steps, 61 if material == "pmma" else 121)
+    mat = pmma_material() if material == "pmma" else fictitious_material()
+    scene = Scene(
+        Grid((n, n), PMMA["domain"]), Sphere(PMMA["radius"]), mat, _times(600.0, steps),
+        normal=Force(10.0),
+    )
+    return _cast(scene, dtype)
+
+
+def coupled_normal(ratio: float = 3.0, n: int = 256, steps: int | None = None, *,
+                   slip: str = "total", dtype=None) -> Scene:
+    """Coupled partial slip under a normal load alone (Figs. 13-15: ratio = 3, 10).
+
+    Paper: Table 2 (W = 0.15 N at t = 0, held; R = 10 mm; mu_inf = 3.86 MPa, paper
+    convention; tau = 0.01 s; nu = 0.3; 5.5 a0 square, 256 x 256 cells), mu_inf / mu_0 =
+    3 or 10, Coulomb friction 0.30, no tangential input, full coupling; T = 2 tau in 81
+    time points.
+    """
+    n = _check_int("n", n, 2)
+    steps = _steps(steps, 81)
+    return _table2_scene(n, steps, 2.0, ratio, Force(TABLE2["force"]), coupling="full",
+                         friction=FRICTION, slip=slip, dtype=dtype)
+
+
+def lc(ratio: float = 4.0, n: int = 256, steps: int | None = None, *,
+       slip: str = "total", dtype=None) -> Scene:
+    """LC case: constant tangential load F_x = 0.5 mu W (Figs. 16-19).
+
+    Paper: as `coupled_normal` with mu_inf / mu_0 = 4 and F_x = 0.5 x 0.30 x 0.15 N
+    (= 0.0225 N) from t = 0, full coupling; T = 2 tau in 81 time points. (The paper
+    reaches the load through a displacement-controlled loop; jaxcontact controls the
+    load directly.)
+    """
+    n = _check_int("n", n, 2)
+    steps = _steps(steps, 81)
+    fx = 0.5 * FRICTION * TABLE2["force"]
+    return _table2_scene(n, steps, 2.0, ratio, Force(TABLE2["force"]), x=Force(fx),
+                         coupling="full", friction=FRICTION, slip=slip, dtype=dtype)
+
+
+def dc(ratio: float = 4.0, n: int = 256, steps: int | None = None, *,
+       slip: str = "total", dtype=None) -> Scene:
+    """DC case: constant delta_x = 6.1987 um, constant load (Figs. 16-22).
+
+    Displacement-constant case: Figs. 16-19 (ratio 4), Fig. 20 (ratios 3, 5, 10) and
+    the creep case of Figs. 21-22 (ratio 4).
+
+    Paper: Table 2 (W = 0.15 N from t = 0), friction 0.30, full coupling, delta_x =
+    6.1987 (um) from t = 0; T = 2 tau in 81 time points.
+    """
+    n = _check_int("n", n, 2)
+    steps = _steps(steps, 81)
+    return _table2_scene(n, steps, 2.0, ratio, Force(TABLE2["force"]),
+                         x=Displacement(DELTA_X), coupling="full", friction=FRICTION,
+                         slip=slip, dtype=dtype)
+
+
+def relaxation(ratio: float = 4.0, n: int = 256, steps: int | None = None, *,
+               slip: str = "total", dtype=None) -> Scene:
+    """Relaxation case: constant delta_z and delta_x (Figs. 21-22).
+
+    delta_z = 34.358 um and delta_x = 6.1987 um; compared with the creep case, `dc`.
+
+    Paper: Table 2 material with mu_inf / mu_0 = 4, friction 0.30, full coupling, both
+    displacements held from t = 0; T = 2 tau in 81 time points.
+    """
+    n = _check_int("n", n, 2)
+    steps = _steps(steps, 81)
+    return _table2_scene(n, steps, 2.0, ratio, Displacement(DELTA_Z),
+                         x=Displacement(DELTA_X), coupling="full", friction=FRICTION,
+                         slip=slip, dtype=dtype)
+
+
+def sliding(ratio: float = 10.0, n: int = 256, steps: int | None = None, *,
+            rate: float = 1e-3, coupling: str = "full", normal: str = "displacement",
+            duration: float = 2.0, slip: str = "total", dtype=None) -> Scene:
+    """Tangential displacement delta_x = rate t up to gross sliding (Figs. 23-27).
+
+    Paper: Table 2 material, friction 0.30, constant normal displacement delta_z =
+    34.358 um (`normal="displacement"`; Figs. 23-25) or constant load W = 0.15 N
+    (`normal="force"`; Figs. 26-27 compare the two); semi-coupled (`coupling="x"`, Fig.
+    23) or fully coupled (`coupling="full"`, Figs. 24-27); several rates and time steps
+    (Fig. 24b varies `steps`). The paper names one rate, v = 1e3 um/s (Fig. 25; the
+    default `rate=1e-3` m/s), but not the others, the time window or the number of
+    points: `duration=2` (tau) and 81 points are our choices. With the default rate,
+    delta_x reaches 20 um at t = 2 tau, beyond the ~13 um of gross sliding of an
+    elastic Cattaneo-Mindlin contact of the same a0.
+
+    - `ratio`: mu_inf / mu_0 (>= 1). `rate`: d(delta_x)/dt [m/s] (> 0).
+    - `coupling`: `"x"` or `"full"`. `normal`: `"displacement"` or `"force"`.
+    - `duration`: T in units of tau (> 0).
+    """
+    n = _check_int("n", n, 2)
+    steps = _steps(steps, 81)
+    rate = _check_positive("rate", rate)
+    duration = _check_positive("duration", duration)
+    _check_choice("coupling", coupling, ("x", "full"))
+    _check_choice("normal", normal, ("displacement", "force"))
+    normal_input = Displacement(DELTA_Z) if normal == "displacement" else Force(
+        TABLE2["force"])
+    times = _times(duration * TABLE2["tau"], steps)
+    return _table2_scene(n, steps, duration, ratio, normal_input,
+                         x=Displacement(rate * times), coupling=coupling,
+                         friction=FRICTION, slip=slip, dtype=dtype)
+
+
+# ---- Registry ------------------------------------------------------------------------
+
+_PRESETS = {
+    "hertz": hertz,
+    "maxwell": maxwell,
+    "pmma_triangle": pmma_triangle,
+    "zener": zener,
+    "weichert": weichert,
+    "coupled_normal": coupled_normal,
+    "lc": lc,
+    "dc": dc,
+    "relaxation": relaxation,
+    "sliding": sliding,
+}
+
+
+def available() -> dict[str, str]:
+    """`{name: one-line description}` of every preset (the first docstring line)."""
+    return {name: fn.__doc__.strip().splitlines()[0] for name, fn in _PRESETS.items()}
+
+
+def parameters(name: str, **kwargs) -> dict:
+    """The full argument set `build(name, **kwargs)` would use, defaults filled in
+    (`steps=None` stays `None`: the scene's `times` holds the resolved value)."""
+    fn = _lookup(name)
+    bound = inspect.signature(fn).bind(**kwargs)
+    bound.apply_defaults()
+    return dict(bound.arguments)
+
+
+def _lookup(name):
+    if name not in _PRESETS:
+        raise ValueError(f"unknown preset {name!r}; available: {sorted(_PRESETS)}")
+    return _PRESETS[name]
+
+
+def build(name: str, **kwargs) -> Scene:
+    """Call the preset `name` with `kwargs` (ValueError for an unknown name)."""
+    return _lookup(name)(**kwargs)
