@@ -1,0 +1,258 @@
+"""Peer contact solvers for `benchmarks/run.py`: Tamaas and ContactMechanics.
+
+This file is run by a Python that has the peers installed (they need not share an
+environment with jaxcontact: `pip install ".[peers]"`, or a separate virtual
+environment, e.g. `python -m venv /tmp/peers-venv && /tmp/peers-venv/bin/pip install
+tamaas contactmechanics`). It imports neither jax nor jaxcontact, only NumPy and the
+peer, and nothing from the peers goes into jaxcontact.
+
+It solves the Hertz problem of `benchmarks/hertz.py` (a rigid sphere of radius R
+pressed with a load W on an elastic half-space of plane-strain modulus E*, square
+domain of side L, n x n cells centred on the origin) with
+
+- ContactMechanics (`FreeFFTElasticHalfSpace`: non-periodic, zero padding to 2n x 2n,
+  Love's influence coefficients of uniformly loaded cells, as jaxcontact's DC-FFT;
+  solved by its `constrained_conjugate_gradients` (Polonsky & Keer) under load control,
+  tolerance `pentol` on the penetration [length]);
+- Tamaas (`model_type.basic_2d`: periodic, Westergaard's spectral kernel at the grid
+  points; solved by `PolonskyKeerRey` under load control (mean pressure W / L^2),
+  relative tolerance `tol`).
+
+Usage::
+
+    python benchmarks/peers.py --probe          # JSON: which peers import, versions
+    python benchmarks/peers.py --serve          # JSON-lines server (stdin -> stdout)
+
+A request is one JSON object per line::
+
+    {"code": "contactmechanics" | "tamaas", "n": 256, "size": L, "radius": R,
+     "force": W, "e_star": E*, "poisson": nu, "tol": 1e-8, "repeats": 3,
+     "save": "/path/to/pressure.npy" (optional)}
+
+and the answer one line: the solve times [s] (each solve from the peer's own initial
+state; set-up such as the kernel spectra is built once per (code, n, size) and not
+timed), the peak pressure [stress], the number of cells in contact (pressure > 0),
+the rigid-body approach [length] (ContactMechanics only: Tamaas is periodic and its
+mean displacement is a gauge), the iteration count where the peer reports it, and the
+process's peak resident memory (`ru_maxrss`). `{"cmd": "quit"}` ends the server.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import sys
+import time
+import traceback
+
+import numpy as np
+
+
+def _maxrss_mib() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def probe() -> dict:
+    """Which peers import here, with their versions or the exact import error."""
+    out = {"python": sys.version.split()[0], "numpy": np.__version__}
+    try:
+        import tamaas
+
+        out["tamaas"] = {
+            "available": True,
+            "version": tamaas.__version__,
+            "backend": getattr(tamaas.TamaasInfo, "backend", None),
+        }
+    except Exception as exc:  # report exactly why
+        out["tamaas"] = {"available": False, "error": f"{type(exc).__name__}: {exc}"}
+    try:
+        import ContactMechanics
+
+        out["contactmechanics"] = {
+            "available": True,
+            "version": ContactMechanics.__version__,
+        }
+    except Exception as exc:
+        out["contactmechanics"] = {
+            "available": False,
+            "error": f"{type(exc).__name__}: {exc}",
+        }
+    return out
+
+
+def sphere_heights(n: int, size: float, radius: float) -> np.ndarray:
+    """Heights of the rigid sphere, -r^2 / (2R), at the cell centres
+    x_i = (i - (n - 1) / 2) dx (jaxcontact's grid); shape (n, n) [length]."""
+    dx = size / n
+    c = (np.arange(n) - (n - 1) / 2) * dx
+    x, y = np.meshgrid(c, c, indexing="ij")
+    return -(x * x + y * y) / (2 * radius)
+
+
+class ContactMechanicsHertz:
+    """Non-periodic Hertz with ContactMechanics (set-up once, solves timed)."""
+
+    name = "contactmechanics"
+
+    def __init__(self, req):
+        import ContactMechanics as CM
+        from ContactMechanics.Optimization import constrained_conjugate_gradients
+        from SurfaceTopography import Topography
+
+        self.n, self.size = int(req["n"]), float(req["size"])
+        self.cell_area = (self.size / self.n) ** 2
+        sizes = (self.size, self.size)
+        self.substrate = CM.FreeFFTElasticHalfSpace(
+            (self.n, self.n), young=float(req["e_star"]), physical_sizes=sizes
+        )
+        self.topography = Topography(
+            sphere_heights(self.n, self.size, float(req["radius"])),
+            physical_sizes=sizes,
+        )
+        self.solver = constrained_conjugate_gradients
+
+    def solve(self, force: float, tol: float):
+        res = self.solver(
+            self.substrate,
+            self.topography,
+            external_force=force,
+            pentol=tol,
+            maxiter=100000,
+        )
+        # Pixel forces on the 2n x 2n computational grid, compressive < 0 or > 0
+        # depending on the version's sign convention: take the sign of the total.
+        f = np.asarray(res.jac)[: self.n, : self.n]
+        if f.sum() < 0:
+            f = -f
+        return {
+            "pressure": f / self.cell_area,
+            "approach": float(res.offset),
+            "iterations": int(res.nit),
+            "converged": bool(res.success),
+        }
+
+
+class TamaasHertz:
+    """Periodic Hertz with Tamaas' PolonskyKeerRey (set-up once, solves timed)."""
+
+    name = "tamaas"
+
+    def __init__(self, req):
+        import tamaas as tm
+
+        tm.set_log_level(tm.LogLevel.error)
+        self.tm = tm
+        self.n, self.size = int(req["n"]), float(req["size"])
+        nu = float(req["poisson"])
+        self.model = tm.ModelFactory.createModel(
+            tm.model_type.basic_2d, [self.size, self.size], [self.n, self.n]
+        )
+        # Tamaas takes Young's modulus and Poisson's ratio: E* = E / (1 - nu^2).
+        self.model.E = float(req["e_star"]) * (1 - nu * nu)
+        self.model.nu = nu
+        self.heights = sphere_heights(self.n, self.size, float(req["radius"]))
+
+    def solve(self, force: float, tol: float):
+        self.model.traction[...] = 0.0
+        self.model.displacement[...] = 0.0
+        solver = self.tm.PolonskyKeerRey(self.model, self.heights, tol)
+        solver.max_iter = 100000
+        err = solver.solve(force / self.size**2)
+        p = np.array(self.model.traction)
+        return {
+            "pressure": p,
+            "approach": None,
+            "iterations": None,
+            "converged": bool(err <= tol),
+            "final_error": float(err),
+        }
+
+
+PEERS = {"contactmechanics": ContactMechanicsHertz, "tamaas": TamaasHertz}
+
+
+def handle(req, cache: dict) -> dict:
+    code = req["code"]
+    key = (
+        code,
+        int(req["n"]),
+        float(req["size"]),
+        float(req["radius"]),
+        float(req["e_star"]),
+        float(req["poisson"]),
+    )
+    t0 = time.perf_counter()
+    if key not in cache:
+        cache.clear()  # one set-up at a time keeps the memory figure per problem
+        cache[key] = PEERS[code](req)
+    setup_s = time.perf_counter() - t0
+    peer = cache[key]
+    force, tol = float(req["force"]), float(req["tol"])
+    times, out = [], None
+    for _ in range(max(1, int(req.get("repeats", 1)))):
+        t = time.perf_counter()
+        out = peer.solve(force, tol)
+        times.append(time.perf_counter() - t)
+    p = out.pop("pressure")
+    if req.get("save"):
+        np.save(req["save"], p)
+    return {
+        "code": code,
+        "n": peer.n,
+        "tol": tol,
+        "times_s": times,
+        "setup_s": setup_s,
+        "peak_pressure": float(p.max()),
+        "contact_cells": int(np.count_nonzero(p > 0)),
+        "total_force": float(p.sum() * (peer.size / peer.n) ** 2),
+        "finite": bool(np.isfinite(p).all()),
+        "maxrss_mib": _maxrss_mib(),
+        **out,
+    }
+
+
+def serve() -> int:
+    cache: dict = {}
+    for line in sys.stdin:
+        line = line.strip()
+        if not line:
+            continue
+        try:
+            req = json.loads(line)
+            if req.get("cmd") == "quit":
+                break
+            if req.get("cmd") == "probe":
+                ans = probe()
+            else:
+                ans = handle(req, cache)
+        except Exception as exc:  # answer, don't die: the caller records it
+            ans = {
+                "error": f"{type(exc).__name__}: {exc}",
+                "traceback": traceback.format_exc(limit=5),
+            }
+        sys.stdout.write(json.dumps(ans) + "\n")
+        sys.stdout.flush()
+    return 0
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    group = ap.add_mutually_exclusive_group(required=True)
+    group.add_argument(
+        "--probe", action="store_true", help="print which peers import (JSON) and exit"
+    )
+    group.add_argument(
+        "--serve",
+        action="store_true",
+        help="answer JSON requests, one per line, on stdin",
+    )
+    args = ap.parse_args(argv)
+    if args.probe:
+        print(json.dumps(probe()))
+        return 0
+    return serve()
+
+
+if __name__ == "__main__":
+    sys.exit(main())
