@@ -1,74 +1,194 @@
-"""Command-line tool: `jaxcontact run hertz --out DIR`.
+"""Command-line tool.
 
-Runs a built-in example scene, prints the numerical result beside the analytic
-reference, and writes the results (`.npz` with metadata) and a plot.
+    jaxcontact presets                                   list the built-in scenes
+    jaxcontact run PRESET_OR_SCENE_FILE --out DIR [--n N] [--steps K] [--float32]
+                   [--param KEY=VALUE ...]
+
+`run hertz` solves the elastic Hertz indentation and prints it beside Hertz theory.
+Any other preset (`jc.presets`) or a TOML scene file (schema: README, "Scene files")
+is solved over its time axis with `jc.solve`; the result goes to `DIR/NAME.npz` (every
+field of the `jc.Solution`, the grid, and a JSON `metadata` string: preset or file,
+parameters, units, versions) and to PNG plots. Exit status: 0 on success, 1 when a
+time step did not converge, 2 for bad input (unknown preset, malformed TOML, bad
+values).
 """
 
 import argparse
+import ast
 import json
+import platform
 import sys
 import time
 from pathlib import Path
 
 
-def _hertz(args) -> int:
+UNITS = {
+    "length": "m",
+    "force": "N",
+    "stress": "Pa",
+    "time": "s",
+    "times": "s",
+    "x": "m",
+    "y": "m",
+    "pressure": "Pa",
+    "shear": "Pa",
+    "normal_force": "N",
+    "approach": "m",
+    "tangential_force": "N",
+    "tangential_displacement": "m",
+    "stick_ratio": "1",
+}
+SOLUTION_FIELDS = (
+    "times",
+    "pressure",
+    "shear",
+    "contact",
+    "stick",
+    "normal_force",
+    "approach",
+    "tangential_force",
+    "tangential_displacement",
+    "stick_ratio",
+    "sliding",
+    "converged",
+    "iterations",
+    "rounds",
+    "residual",
+)
+
+
+class InputError(Exception):
+    """Bad command-line input: reported with exit status 2."""
+
+
+def _versions() -> dict:
+    import jax
+    import numpy as np
+
+    import jaxcontact as jc
+
+    return {
+        "jaxcontact": jc.__version__,
+        "jax": jax.__version__,
+        "numpy": np.__version__,
+        "python": platform.python_version(),
+    }
+
+
+def _parse_param(text: str):
+    """`KEY=VALUE` -> (key, value); the value is a Python literal or else a string."""
+    if "=" not in text:
+        raise InputError(f"--param must be KEY=VALUE, got {text!r}")
+    key, raw = text.split("=", 1)
+    key = key.strip()
+    if not key.isidentifier():
+        raise InputError(f"--param key must be a name, got {key!r}")
+    try:
+        value = ast.literal_eval(raw.strip())
+    except (ValueError, SyntaxError):
+        value = raw.strip()
+    return key, value
+
+
+def _setup_jax(float32: bool):
     import jax
 
-    jax.config.update("jax_enable_x64", True)
+    if not float32:
+        jax.config.update("jax_enable_x64", True)
+    import jax.numpy as jnp
+
+    return jnp.float32 if float32 else jnp.float64
+
+
+# ---- Hertz: the main job, with its comparison table ----------------------------------
+
+
+def _hertz(args, dtype) -> int:
     import jax.numpy as jnp
     import numpy as np
 
     import jaxcontact as jc
 
-    radius, force, shear_modulus, poisson = 10e-3, 0.15, 1.93e6, 0.3
+    if args.param:
+        raise InputError("the hertz preset takes no --param")
+    n = 256 if args.n is None else args.n
+    if args.steps not in (None, 1):
+        raise InputError(
+            f"--steps: the hertz example is one load step, got {args.steps}"
+        )
+    scene = jc.presets.hertz(n=n, dtype=dtype)
+    grid, material = scene.grid, scene.material
+    radius = float(scene.indenter.radius)
+    force = float(scene.normal.values(scene.times)[0])
+    shear_modulus, poisson = float(material.shear_modulus), float(material.poisson)
     hertz = jc.Hertz(radius, force, shear_modulus, poisson)
     a = float(hertz.contact_radius)
-    n = args.n
-    grid = jc.Grid((n, n), 4 * a)
-    material = jc.Elastic(shear_modulus, poisson)
+    size = float(grid.size[0])
     operator = jc.HalfSpace(grid)
     start = time.perf_counter()
-    sol = jc.solve_normal(grid, jc.Sphere(radius), material, force=force, operator=operator)
+    sol = jc.solve_normal(
+        grid, scene.indenter, material, force=force, operator=operator
+    )
     sol.pressure.block_until_ready()
     elapsed = time.perf_counter() - start
 
     a_num = float(np.sqrt(float(jnp.sum(sol.contact)) * float(grid.cell_area) / np.pi))
     rows = [
         ("contact radius a [m]", a_num, a),
-        ("peak pressure p0 [Pa]", float(sol.pressure.max()), float(hertz.peak_pressure)),
+        (
+            "peak pressure p0 [Pa]",
+            float(sol.pressure.max()),
+            float(hertz.peak_pressure),
+        ),
         ("approach delta [m]", float(sol.approach), float(hertz.approach)),
         ("normal force W [N]", float(sol.normal_force), force),
     ]
-    print(f"Hertz indentation: rigid sphere R = {radius} m on G = {shear_modulus} Pa, "
-          f"nu = {poisson}, W = {force} N; grid {n}x{n} over {4 * a:.3e} m (float64)")
+    precision = "float32" if dtype == jnp.float32 else "float64"
+    print(
+        f"Hertz indentation: rigid sphere R = {radius} m on G = {shear_modulus} Pa, "
+        f"nu = {poisson}, W = {force} N; grid {n}x{n} over {size:.3e} m ({precision})"
+    )
     print(f"{'quantity':<24}{'jaxcontact':>14}{'Hertz':>14}{'rel. error':>12}")
     for name, num, ref in rows:
         print(f"{name:<24}{num:>14.6e}{ref:>14.6e}{num / ref - 1:>12.2e}")
-    print(f"converged={bool(sol.converged)} iterations={int(sol.iterations)} "
-          f"residual={float(sol.residual):.1e} time={elapsed:.2f} s (incl. compilation)")
+    print(
+        f"converged={bool(sol.converged)} iterations={int(sol.iterations)} "
+        f"residual={float(sol.residual):.1e} time={elapsed:.2f} s (incl. compilation)"
+    )
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     meta = dict(
-        scene="hertz", radius=radius, force=force, shear_modulus=shear_modulus,
-        poisson=poisson, shape=[n, n], size=4 * a, units="SI (m, N, Pa)",
-        converged=bool(sol.converged), iterations=int(sol.iterations),
-        residual=float(sol.residual), version=jc.__version__,
+        scene="hertz",
+        preset="hertz",
+        parameters={"n": n, "steps": 1},
+        radius=radius,
+        force=force,
+        shear_modulus=shear_modulus,
+        poisson=poisson,
+        shape=[n, n],
+        size=size,
+        dtype=precision,
+        units="SI (m, N, Pa)",
+        converged=bool(sol.converged),
+        iterations=int(sol.iterations),
+        residual=float(sol.residual),
+        version=jc.__version__,
+        versions=_versions(),
     )
     np.savez(
         out / "hertz.npz",
-        x=np.asarray(grid.x), y=np.asarray(grid.y), pressure=np.asarray(sol.pressure),
-        gap=np.asarray(sol.gap), contact=np.asarray(sol.contact),
-        approach=float(sol.approach), metadata=json.dumps(meta),
+        x=np.asarray(grid.x),
+        y=np.asarray(grid.y),
+        pressure=np.asarray(sol.pressure),
+        gap=np.asarray(sol.gap),
+        contact=np.asarray(sol.contact),
+        approach=float(sol.approach),
+        metadata=json.dumps(meta),
     )
     print(f"wrote {out / 'hertz.npz'}")
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        print("matplotlib is not installed: no plot (pip install 'jaxcontact[plot]')")
+    plt = _pyplot()
+    if plt is None:
         return 0 if bool(sol.converged) else 1
     x = np.asarray(grid.x) / a
     row = np.asarray(sol.pressure)[:, n // 2] / float(hertz.peak_pressure)
@@ -82,30 +202,335 @@ def _hertz(args) -> int:
     ax.legend()
     fig.tight_layout()
     fig.savefig(out / "hertz.png", dpi=120)
+    plt.close(fig)
     print(f"wrote {out / 'hertz.png'}")
     return 0 if bool(sol.converged) else 1
 
 
-EXAMPLES = {"hertz": _hertz}
+def _pyplot():
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print("matplotlib is not installed: no plots (pip install 'jaxcontact[plot]')")
+        return None
+    return plt
+
+
+# ---- Any scene: a preset or a TOML file ----------------------------------------------
+
+
+def _scene_from_args(args, dtype):
+    """(stem, scene, solve options, metadata) for a preset name or a TOML file."""
+    import jaxcontact as jc
+
+    target = args.target
+    params = dict(_parse_param(p) for p in args.param)
+    if target.endswith(".toml") or Path(target).is_file():
+        if params:
+            raise InputError("--param applies to presets only; edit the scene file")
+        path = Path(target)
+        if not path.is_file():
+            raise InputError(f"scene file {target!r} does not exist")
+        try:
+            spec = jc.presets.read_toml(path)
+            scene, options = jc.presets.from_spec(
+                spec, n=args.n, steps=args.steps, dtype=dtype
+            )
+        except (ValueError, TypeError) as exc:
+            raise InputError(f"scene file {target}: {exc}") from exc
+        stem = str(spec.get("name", path.stem))
+        meta = {
+            "scene_file": str(path),
+            "scene": spec,
+            "description": spec.get("description", ""),
+        }
+        return stem, scene, options, meta
+    if target not in jc.presets.available():
+        raise InputError(
+            f"unknown preset {target!r} (and no such scene file); "
+            f"available presets: {', '.join(jc.presets.available())}"
+        )
+    if args.n is not None:
+        params["n"] = args.n
+    if args.steps is not None:
+        params["steps"] = args.steps
+    try:
+        full = jc.presets.parameters(target, **params)
+        scene = jc.presets.build(target, **params, dtype=dtype)
+    except (ValueError, TypeError) as exc:
+        raise InputError(f"preset {target}: {exc}") from exc
+    full.pop("dtype", None)
+    full["steps"] = int(scene.times.shape[0])
+    meta = {
+        "preset": target,
+        "parameters": full,
+        "description": jc.presets.available()[target],
+    }
+    return target, scene, {}, meta
+
+
+def _describe(scene) -> dict:
+    import numpy as np
+
+    def leaves(module):
+        out = {}
+        for name, value in vars(module).items():
+            arr = np.asarray(value)
+            out[name] = arr.item() if arr.size == 1 else arr.tolist()
+        return out
+
+    return {
+        "shape": list(scene.grid.shape),
+        "size": np.asarray(scene.grid.size).tolist(),
+        "material": {"type": type(scene.material).__name__, **leaves(scene.material)},
+        "indenter": type(scene.indenter).__name__,
+        "normal": type(scene.normal).__name__,
+        "x": None if scene.x is None else type(scene.x).__name__,
+        "y": None if scene.y is None else type(scene.y).__name__,
+        "friction": float(scene.friction),
+        "coupling": scene.coupling,
+        "slip": scene.slip,
+        "nt": int(scene.times.shape[0]),
+    }
+
+
+def _progress_table(sol, rows: int = 10) -> str:
+    """Every ~nt/rows steps: time, loads, stick ratio and solver status."""
+    import numpy as np
+
+    nt = sol.times.shape[0]
+    stride = max(1, int(np.ceil(nt / rows)))
+    head = (
+        f"{'step':>6}{'t [s]':>12}{'W [N]':>12}{'delta_z [m]':>13}"
+        f"{'F_x [N]':>12}{'stick':>8}{'ok':>4}{'iter':>6}"
+    )
+    lines = [head]
+    for k in sorted(set(range(0, nt, stride)) | {nt - 1}):
+        lines.append(
+            f"{k:>6}{sol.times[k]:>12.4g}{sol.normal_force[k]:>12.4g}"
+            f"{sol.approach[k]:>13.4g}{sol.tangential_force[k, 0]:>12.4g}"
+            f"{sol.stick_ratio[k]:>8.3f}{'y' if sol.converged[k] else 'N':>4}"
+            f"{sol.iterations[k]:>6d}"
+        )
+    return "\n".join(lines)
+
+
+def _run_scene(args, dtype) -> int:
+    import jax
+    import numpy as np
+
+    import jaxcontact as jc
+
+    stem, scene, options, meta = _scene_from_args(args, dtype)
+    info = _describe(scene)
+    nt = info["nt"]
+    precision = np.dtype(dtype).name
+    print(f"{stem}: {meta['description']}".rstrip(": "))
+    print(
+        f"grid {info['shape'][0]}x{info['shape'][1]} over "
+        f"{info['size'][0]:.4g} m x {info['size'][1]:.4g} m, {nt} time points, "
+        f"{info['material']['type']}, coupling={info['coupling']}, "
+        f"friction={info['friction']}, {precision}"
+    )
+    print(
+        f"solving {nt} time steps (one compiled program; compilation included) ...",
+        flush=True,
+    )
+    start = time.perf_counter()
+    try:
+        sol = jc.solve(scene, **options)
+        sol = jax.tree_util.tree_map(np.asarray, sol)
+    except (ValueError, TypeError) as exc:
+        raise InputError(f"{stem}: {exc}") from exc
+    elapsed = time.perf_counter() - start
+    print(_progress_table(sol))
+    n_bad = int((~sol.converged).sum())
+    print(
+        f"done in {elapsed:.2f} s: {nt - n_bad}/{nt} steps converged, "
+        f"max residual {float(sol.residual.max()):.1e}"
+    )
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    meta.update(
+        scene_summary=info,
+        dtype=precision,
+        units=UNITS,
+        versions=_versions(),
+        solve_options=options,
+        wall_time_s=elapsed,
+        converged=n_bad == 0,
+    )
+    arrays = {name: np.asarray(getattr(sol, name)) for name in SOLUTION_FIELDS}
+    np.savez(
+        out / f"{stem}.npz",
+        x=np.asarray(scene.grid.x),
+        y=np.asarray(scene.grid.y),
+        metadata=json.dumps(meta, default=str),
+        **arrays,
+    )
+    print(f"wrote {out / (stem + '.npz')}")
+    for path in _standard_plots(scene, sol, out, stem):
+        print(f"wrote {path}")
+    if n_bad:
+        print(
+            f"warning: {n_bad} time step(s) did not converge (see 'converged' in the "
+            "npz)",
+            file=sys.stderr,
+        )
+        return 1
+    return 0
+
+
+def _standard_plots(scene, sol, out: Path, stem: str) -> list:
+    """Pressure (and shear) profiles along x, loads against time, stick/slip map."""
+    import numpy as np
+
+    plt = _pyplot()
+    if plt is None:
+        return []
+    x = np.asarray(scene.grid.x)
+    nx, ny = scene.grid.shape
+    j = ny // 2
+    nt = sol.times.shape[0]
+    picks = sorted(set(np.linspace(0, nt - 1, min(nt, 5)).round().astype(int)))
+    frictional = bool(sol.shear.any())
+    paths = []
+
+    fig, axes = plt.subplots(
+        1, 2 if frictional else 1, figsize=(9 if frictional else 5, 3.5), squeeze=False
+    )
+    for k in picks:
+        axes[0, 0].plot(
+            x * 1e6, sol.pressure[k, :, j] / 1e6, label=f"t = {sol.times[k]:.3g} s"
+        )
+        if frictional:
+            axes[0, 1].plot(x * 1e6, sol.shear[k, 0, :, j] / 1e6)
+    axes[0, 0].set_xlabel("x [um]")
+    axes[0, 0].set_ylabel("pressure p [MPa] (y = 0)")
+    axes[0, 0].legend(fontsize=7)
+    if frictional:
+        axes[0, 1].set_xlabel("x [um]")
+        axes[0, 1].set_ylabel("shear q_x [MPa] (y = 0)")
+    fig.tight_layout()
+    paths.append(out / f"{stem}_profiles.png")
+    fig.savefig(paths[-1], dpi=110)
+    plt.close(fig)
+
+    if nt > 1:
+        fig, ax = plt.subplots(1, 3, figsize=(12, 3.3))
+        ax[0].plot(sol.times, sol.normal_force, ".-")
+        ax[0].set_ylabel("normal force W [N]")
+        ax[1].plot(sol.times, sol.approach * 1e6, ".-")
+        ax[1].set_ylabel("approach delta_z [um]")
+        ax[2].plot(sol.times, sol.tangential_force[:, 0], ".-", label="F_x [N]")
+        ax[2].set_ylabel("F_x [N]")
+        twin = ax[2].twinx()
+        twin.plot(sol.times, sol.stick_ratio, "r.--")
+        twin.set_ylabel("stick ratio", color="r")
+        for a in ax:
+            a.set_xlabel("t [s]")
+        fig.tight_layout()
+        paths.append(out / f"{stem}_history.png")
+        fig.savefig(paths[-1], dpi=110)
+        plt.close(fig)
+
+    if frictional or sol.stick.any():
+        fig, axes = plt.subplots(
+            1, len(picks), figsize=(2.6 * len(picks), 2.8), squeeze=False
+        )
+        extent = [
+            x[0] * 1e6,
+            x[-1] * 1e6,
+            float(scene.grid.y[0]) * 1e6,
+            float(scene.grid.y[-1]) * 1e6,
+        ]
+        for a, k in zip(axes[0], picks):
+            state = sol.contact[k].astype(int) + sol.stick[k].astype(int)
+            a.imshow(
+                state.T, origin="lower", extent=extent, cmap="Greys", vmin=0, vmax=2
+            )
+            a.set_title(f"t = {sol.times[k]:.3g} s", fontsize=8)
+            a.set_xlabel("x [um]", fontsize=8)
+        axes[0, 0].set_ylabel("y [um]  (dark: stick, grey: slip)", fontsize=8)
+        fig.tight_layout()
+        paths.append(out / f"{stem}_stick.png")
+        fig.savefig(paths[-1], dpi=110)
+        plt.close(fig)
+    return paths
+
+
+# ---- Entry point ---------------------------------------------------------------------
+
+
+def _parser():
+    parser = argparse.ArgumentParser(
+        prog="jaxcontact",
+        description="jaxcontact: contact scenes from the command line.",
+    )
+    sub = parser.add_subparsers(dest="command", required=True)
+    run = sub.add_parser("run", help="solve a preset or a TOML scene file")
+    run.add_argument(
+        "target",
+        metavar="PRESET_OR_SCENE_FILE",
+        help="a preset name (see `jaxcontact presets`) or a .toml scene file",
+    )
+    run.add_argument("--out", default="jaxcontact-out", help="output directory")
+    run.add_argument(
+        "--n",
+        type=int,
+        default=None,
+        help="grid cells per side (default: the preset's / file's)",
+    )
+    run.add_argument(
+        "--steps",
+        type=int,
+        default=None,
+        help="time points including t = 0 (default: the preset's / file's)",
+    )
+    run.add_argument(
+        "--float32", action="store_true", help="single precision (default: float64)"
+    )
+    run.add_argument(
+        "--param",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="a preset argument, e.g. --param ratio=10 (repeatable)",
+    )
+    sub.add_parser("presets", help="list the built-in presets")
+    sub.add_parser("examples", help="same as `presets`")
+    return parser
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="jaxcontact", description=__doc__.splitlines()[0])
-    sub = parser.add_subparsers(dest="command", required=True)
-    run = sub.add_parser("run", help="run a built-in example")
-    run.add_argument("example", help=f"one of {sorted(EXAMPLES)}")
-    run.add_argument("--out", default="jaxcontact-out", help="output directory")
-    run.add_argument("--n", type=int, default=256, help="grid cells per side")
-    sub.add_parser("examples", help="list the built-in examples")
-    args = parser.parse_args(argv)
-    if args.command == "examples":
-        print("\n".join(sorted(EXAMPLES)))
-        return 0
-    if args.example not in EXAMPLES:
-        parser.error(f"unknown example {args.example!r}; choose from {sorted(EXAMPLES)}")
-    if args.n < 2:
-        parser.error(f"--n must be >= 2, got {args.n}")
-    return EXAMPLES[args.example](args)
+    """Run the command line `argv` (default: `sys.argv[1:]`); return the exit status."""
+    parser = _parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # argparse: 2 for bad usage, 0 for --help
+        return int(exc.code or 0)
+    try:
+        if args.command in ("presets", "examples"):
+            from . import presets
+
+            for name, text in presets.available().items():
+                print(f"{name:<16}{text}")
+            return 0
+        if args.n is not None and args.n < 2:
+            raise InputError(f"--n must be >= 2, got {args.n}")
+        if args.steps is not None and args.steps < 1:
+            raise InputError(f"--steps must be >= 1, got {args.steps}")
+        dtype = _setup_jax(args.float32)
+        if args.target == "hertz":
+            return _hertz(args, dtype)
+        return _run_scene(args, dtype)
+    except InputError as exc:
+        print(f"jaxcontact: error: {exc}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

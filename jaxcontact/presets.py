@@ -17,10 +17,19 @@ Presets with friction use the paper's slip law (`slip="total"`, its Eq. 16) unle
 otherwise (`slip="incremental"`, path dependent, is `jc.Scene`'s default).
 
 `available()` lists the names with one-line descriptions; `build(name, **kwargs)` calls
-one by name.
+one by name; `from_toml(path)` reads a user-defined scene file (README, "Scene
+files").
+
+!!! note "Time step"
+    The paper's scheme (tractions piecewise constant in time) needs steps short against
+    the relaxation time `tau mu_0 / mu_inf`: under a held displacement the first step's
+    discrete relaxation factor is `2 - J(dt) / J(0)`, negative (contact lost, tractions
+    oscillating in time) once `J(dt) > 2 J(0)`. The paper's step counts satisfy this;
+    when you cut `steps`, cut `duration` too (e.g. ratio 10 needs `dt < 0.12 tau`).
 """
 
 import inspect
+import tomllib
 
 import jax
 import jax.numpy as jnp
@@ -37,7 +46,7 @@ from ._material.zener import Zener
 from ._scene import Scene
 
 
-# ---- The paper's parameters, converted to true shear moduli (SI) ----------------------
+# ---- The paper's parameters, converted to true shear moduli (SI) ---------------------
 
 # Table 1 (section 3): Maxwell model, step load.
 TABLE1 = dict(
@@ -122,7 +131,8 @@ def _ratio(ratio):
     ratio = _check_positive("ratio", ratio)
     if ratio < 1:
         raise ValueError(
-            f"ratio (mu_inf / mu_0) must be >= 1 for a viscoelastic solid, got {ratio!r}"
+            f"ratio (mu_inf / mu_0) must be >= 1 for a viscoelastic solid, "
+            f"got {ratio!r}"
         )
     return ratio
 
@@ -161,15 +171,17 @@ def zener_material(ratio) -> Zener:
 
 def pmma_material() -> Prony:
     """PMMA, paper Eq. 27 (halved: true shear moduli)."""
-    return Prony(PMMA["g_inf"], np.asarray(PMMA["g"]), np.asarray(PMMA["tau"]),
-                 PMMA["poisson"])
+    return Prony(
+        PMMA["g_inf"], np.asarray(PMMA["g"]), np.asarray(PMMA["tau"]), PMMA["poisson"]
+    )
 
 
 def fictitious_material() -> Prony:
-    """The fictitious material of the paper's Eq. 31 (compliance doubled: true shear)."""
+    """The fictitious material of the paper's Eq. 31 (compliance doubled: true G)."""
     f = FICTITIOUS
-    return Prony.from_creep(f["j_inf"], np.asarray(f["j"]), np.asarray(f["tau"]),
-                            f["poisson"])
+    return Prony.from_creep(
+        f["j_inf"], np.asarray(f["j"]), np.asarray(f["tau"]), f["poisson"]
+    )
 
 
 def _table2_grid(n):
@@ -177,12 +189,30 @@ def _table2_grid(n):
     return Grid((n, n), TABLE2["domain_a0"] * a0)
 
 
-def _table2_scene(n, steps, duration, ratio, normal, x=None, coupling="none",
-                  friction=0.0, slip="total", dtype=None):
+def _table2_scene(
+    n,
+    steps,
+    duration,
+    ratio,
+    normal,
+    x=None,
+    coupling="none",
+    friction=0.0,
+    slip="total",
+    dtype=None,
+):
     times = _times(duration * TABLE2["tau"], steps)
     scene = Scene(
-        _table2_grid(n), Sphere(TABLE2["radius"]), zener_material(ratio), times,
-        normal=normal, x=x, y=None, friction=friction, coupling=coupling, slip=slip,
+        _table2_grid(n),
+        Sphere(TABLE2["radius"]),
+        zener_material(ratio),
+        times,
+        normal=normal,
+        x=x,
+        y=None,
+        friction=friction,
+        coupling=coupling,
+        slip=slip,
     )
     return _cast(scene, dtype)
 
@@ -204,14 +234,18 @@ def hertz(n: int = 256, steps: int = 1, *, dtype=None) -> Scene:
     a = float(table2_hertz().contact_radius)
     times = _times(1.0, steps) if steps > 1 else np.zeros(1)
     scene = Scene(
-        Grid((n, n), 4 * a), Sphere(t2["radius"]), Elastic(t2["mu_inf"], t2["poisson"]),
-        times, normal=Force(t2["force"]),
+        Grid((n, n), 4 * a),
+        Sphere(t2["radius"]),
+        Elastic(t2["mu_inf"], t2["poisson"]),
+        times,
+        normal=Force(t2["force"]),
     )
     return _cast(scene, dtype)
 
 
-def maxwell(n: int = 256, steps: int | None = None, *, duration: float = 2.0,
-            dtype=None) -> Scene:
+def maxwell(
+    n: int = 256, steps: int | None = None, *, duration: float = 2.0, dtype=None
+) -> Scene:
     """Maxwell half-space, step load (Table 1; Figs. 4-5, and 10-11 with duration=6).
 
     Paper: R = 3.5 mm, G = 81.92 GPa and eta = 81.92 GPa s (paper convention: here
@@ -229,8 +263,11 @@ def maxwell(n: int = 256, steps: int | None = None, *, duration: float = 2.0,
     material = Maxwell(t1["shear_modulus"], t1["viscosity"], t1["poisson"])
     tau = t1["viscosity"] / t1["shear_modulus"]
     scene = Scene(
-        Grid((n, n), t1["domain"]), Sphere(t1["radius"]), material,
-        _times(duration * tau, steps), normal=Force(t1["force"]),
+        Grid((n, n), t1["domain"]),
+        Sphere(t1["radius"]),
+        material,
+        _times(duration * tau, steps),
+        normal=Force(t1["force"]),
     )
     return _cast(scene, dtype)
 
@@ -249,14 +286,23 @@ def pmma_triangle(n: int = 256, steps: int | None = None, *, dtype=None) -> Scen
     times = _times(20.0, steps)
     load = 10 * times - 20 * (times - 10) * (times > 10)
     scene = Scene(
-        Grid((n, n), PMMA["domain"]), Sphere(PMMA["radius"]), pmma_material(), times,
+        Grid((n, n), PMMA["domain"]),
+        Sphere(PMMA["radius"]),
+        pmma_material(),
+        times,
         normal=Force(load),
     )
     return _cast(scene, dtype)
 
 
-def zener(ratio: float = 4.0, n: int = 256, steps: int | None = None, *,
-          duration: float = 3.0, dtype=None) -> Scene:
+def zener(
+    ratio: float = 4.0,
+    n: int = 256,
+    steps: int | None = None,
+    *,
+    duration: float = 3.0,
+    dtype=None,
+) -> Scene:
     """Zener half-space, step load (Table 2; Figs. 8-9: ratio = 2, 4, 8, 10).
 
     Fig. 8e: ratio 10 with more `steps`; Fig. 8f: `duration=6`.
@@ -276,8 +322,9 @@ def zener(ratio: float = 4.0, n: int = 256, steps: int | None = None, *,
     return _table2_scene(n, steps, duration, ratio, Force(TABLE2["force"]), dtype=dtype)
 
 
-def weichert(material: str = "pmma", n: int = 256, steps: int | None = None, *,
-             dtype=None) -> Scene:
+def weichert(
+    material: str = "pmma", n: int = 256, steps: int | None = None, *, dtype=None
+) -> Scene:
     """PMMA or the fictitious material of Eq. 31, 10 N step load for 600 s (Fig. 12).
 
     Paper: `material="pmma"` (Eq. 27/28; Fig. 12a, 61 time points) or `"fictitious"`
@@ -290,14 +337,24 @@ def weichert(material: str = "pmma", n: int = 256, steps: int | None = None, *,
     steps = _steps(steps, 61 if material == "pmma" else 121)
     mat = pmma_material() if material == "pmma" else fictitious_material()
     scene = Scene(
-        Grid((n, n), PMMA["domain"]), Sphere(PMMA["radius"]), mat, _times(600.0, steps),
+        Grid((n, n), PMMA["domain"]),
+        Sphere(PMMA["radius"]),
+        mat,
+        _times(600.0, steps),
         normal=Force(10.0),
     )
     return _cast(scene, dtype)
 
 
-def coupled_normal(ratio: float = 3.0, n: int = 256, steps: int | None = None, *,
-                   slip: str = "total", dtype=None) -> Scene:
+def coupled_normal(
+    ratio: float = 3.0,
+    n: int = 256,
+    steps: int | None = None,
+    *,
+    duration: float = 2.0,
+    slip: str = "total",
+    dtype=None,
+) -> Scene:
     """Coupled partial slip under a normal load alone (Figs. 13-15: ratio = 3, 10).
 
     Paper: Table 2 (W = 0.15 N at t = 0, held; R = 10 mm; mu_inf = 3.86 MPa, paper
@@ -306,13 +363,30 @@ def coupled_normal(ratio: float = 3.0, n: int = 256, steps: int | None = None, *
     time points.
     """
     n = _check_int("n", n, 2)
+    duration = _check_positive("duration", duration)
     steps = _steps(steps, 81)
-    return _table2_scene(n, steps, 2.0, ratio, Force(TABLE2["force"]), coupling="full",
-                         friction=FRICTION, slip=slip, dtype=dtype)
+    return _table2_scene(
+        n,
+        steps,
+        duration,
+        ratio,
+        Force(TABLE2["force"]),
+        coupling="full",
+        friction=FRICTION,
+        slip=slip,
+        dtype=dtype,
+    )
 
 
-def lc(ratio: float = 4.0, n: int = 256, steps: int | None = None, *,
-       slip: str = "total", dtype=None) -> Scene:
+def lc(
+    ratio: float = 4.0,
+    n: int = 256,
+    steps: int | None = None,
+    *,
+    duration: float = 2.0,
+    slip: str = "total",
+    dtype=None,
+) -> Scene:
     """LC case: constant tangential load F_x = 0.5 mu W (Figs. 16-19).
 
     Paper: as `coupled_normal` with mu_inf / mu_0 = 4 and F_x = 0.5 x 0.30 x 0.15 N
@@ -321,14 +395,32 @@ def lc(ratio: float = 4.0, n: int = 256, steps: int | None = None, *,
     load directly.)
     """
     n = _check_int("n", n, 2)
+    duration = _check_positive("duration", duration)
     steps = _steps(steps, 81)
     fx = 0.5 * FRICTION * TABLE2["force"]
-    return _table2_scene(n, steps, 2.0, ratio, Force(TABLE2["force"]), x=Force(fx),
-                         coupling="full", friction=FRICTION, slip=slip, dtype=dtype)
+    return _table2_scene(
+        n,
+        steps,
+        duration,
+        ratio,
+        Force(TABLE2["force"]),
+        x=Force(fx),
+        coupling="full",
+        friction=FRICTION,
+        slip=slip,
+        dtype=dtype,
+    )
 
 
-def dc(ratio: float = 4.0, n: int = 256, steps: int | None = None, *,
-       slip: str = "total", dtype=None) -> Scene:
+def dc(
+    ratio: float = 4.0,
+    n: int = 256,
+    steps: int | None = None,
+    *,
+    duration: float = 2.0,
+    slip: str = "total",
+    dtype=None,
+) -> Scene:
     """DC case: constant delta_x = 6.1987 um, constant load (Figs. 16-22).
 
     Displacement-constant case: Figs. 16-19 (ratio 4), Fig. 20 (ratios 3, 5, 10) and
@@ -338,14 +430,31 @@ def dc(ratio: float = 4.0, n: int = 256, steps: int | None = None, *,
     6.1987 (um) from t = 0; T = 2 tau in 81 time points.
     """
     n = _check_int("n", n, 2)
+    duration = _check_positive("duration", duration)
     steps = _steps(steps, 81)
-    return _table2_scene(n, steps, 2.0, ratio, Force(TABLE2["force"]),
-                         x=Displacement(DELTA_X), coupling="full", friction=FRICTION,
-                         slip=slip, dtype=dtype)
+    return _table2_scene(
+        n,
+        steps,
+        duration,
+        ratio,
+        Force(TABLE2["force"]),
+        x=Displacement(DELTA_X),
+        coupling="full",
+        friction=FRICTION,
+        slip=slip,
+        dtype=dtype,
+    )
 
 
-def relaxation(ratio: float = 4.0, n: int = 256, steps: int | None = None, *,
-               slip: str = "total", dtype=None) -> Scene:
+def relaxation(
+    ratio: float = 4.0,
+    n: int = 256,
+    steps: int | None = None,
+    *,
+    duration: float = 2.0,
+    slip: str = "total",
+    dtype=None,
+) -> Scene:
     """Relaxation case: constant delta_z and delta_x (Figs. 21-22).
 
     delta_z = 34.358 um and delta_x = 6.1987 um; compared with the creep case, `dc`.
@@ -354,15 +463,34 @@ def relaxation(ratio: float = 4.0, n: int = 256, steps: int | None = None, *,
     displacements held from t = 0; T = 2 tau in 81 time points.
     """
     n = _check_int("n", n, 2)
+    duration = _check_positive("duration", duration)
     steps = _steps(steps, 81)
-    return _table2_scene(n, steps, 2.0, ratio, Displacement(DELTA_Z),
-                         x=Displacement(DELTA_X), coupling="full", friction=FRICTION,
-                         slip=slip, dtype=dtype)
+    return _table2_scene(
+        n,
+        steps,
+        duration,
+        ratio,
+        Displacement(DELTA_Z),
+        x=Displacement(DELTA_X),
+        coupling="full",
+        friction=FRICTION,
+        slip=slip,
+        dtype=dtype,
+    )
 
 
-def sliding(ratio: float = 10.0, n: int = 256, steps: int | None = None, *,
-            rate: float = 1e-3, coupling: str = "full", normal: str = "displacement",
-            duration: float = 2.0, slip: str = "total", dtype=None) -> Scene:
+def sliding(
+    ratio: float = 10.0,
+    n: int = 256,
+    steps: int | None = None,
+    *,
+    rate: float = 1e-3,
+    coupling: str = "full",
+    normal: str = "displacement",
+    duration: float = 2.0,
+    slip: str = "total",
+    dtype=None,
+) -> Scene:
     """Tangential displacement delta_x = rate t up to gross sliding (Figs. 23-27).
 
     Paper: Table 2 material, friction 0.30, constant normal displacement delta_z =
@@ -385,12 +513,22 @@ def sliding(ratio: float = 10.0, n: int = 256, steps: int | None = None, *,
     duration = _check_positive("duration", duration)
     _check_choice("coupling", coupling, ("x", "full"))
     _check_choice("normal", normal, ("displacement", "force"))
-    normal_input = Displacement(DELTA_Z) if normal == "displacement" else Force(
-        TABLE2["force"])
+    normal_input = (
+        Displacement(DELTA_Z) if normal == "displacement" else Force(TABLE2["force"])
+    )
     times = _times(duration * TABLE2["tau"], steps)
-    return _table2_scene(n, steps, duration, ratio, normal_input,
-                         x=Displacement(rate * times), coupling=coupling,
-                         friction=FRICTION, slip=slip, dtype=dtype)
+    return _table2_scene(
+        n,
+        steps,
+        duration,
+        ratio,
+        normal_input,
+        x=Displacement(rate * times),
+        coupling=coupling,
+        friction=FRICTION,
+        slip=slip,
+        dtype=dtype,
+    )
 
 
 # ---- Registry ------------------------------------------------------------------------
@@ -418,7 +556,13 @@ def parameters(name: str, **kwargs) -> dict:
     """The full argument set `build(name, **kwargs)` would use, defaults filled in
     (`steps=None` stays `None`: the scene's `times` holds the resolved value)."""
     fn = _lookup(name)
-    bound = inspect.signature(fn).bind(**kwargs)
+    signature = inspect.signature(fn)
+    try:
+        bound = signature.bind(**kwargs)
+    except TypeError as exc:
+        raise TypeError(
+            f"preset {name!r}: {exc}; it takes {list(signature.parameters)}"
+        ) from None
     bound.apply_defaults()
     return dict(bound.arguments)
 
@@ -430,5 +574,196 @@ def _lookup(name):
 
 
 def build(name: str, **kwargs) -> Scene:
-    """Call the preset `name` with `kwargs` (ValueError for an unknown name)."""
+    """Call the preset `name` with `kwargs` (ValueError for an unknown name, TypeError
+    for an argument it does not take)."""
+    parameters(name, **kwargs)
     return _lookup(name)(**kwargs)
+
+
+# ---- Scene files (TOML) --------------------------------------------------------------
+
+_MATERIALS = {
+    # type: (constructor, required keys, optional keys)
+    "elastic": (Elastic, ("shear_modulus", "poisson"), ()),
+    "maxwell": (Maxwell, ("shear_modulus", "viscosity", "poisson"), ()),
+    "zener": (Zener, ("mu_inf", "mu_0", "tau", "poisson"), ()),
+    "prony": (Prony, ("g_inf", "g", "tau", "poisson"), ()),
+    "prony_creep": (Prony.from_creep, ("j_inf", "j", "tau", "poisson"), ("fluidity",)),
+}
+_SECTIONS = (
+    "name",
+    "description",
+    "grid",
+    "indenter",
+    "material",
+    "time",
+    "normal",
+    "x",
+    "y",
+    "contact",
+    "solver",
+)
+_SOLVER_KEYS = ("rtol", "max_steps", "max_rounds", "resync_every", "history", "scheme")
+
+
+def read_toml(path) -> dict:
+    """Read a TOML scene file into a dict (ValueError naming the file if malformed)."""
+    try:
+        with open(path, "rb") as f:
+            return tomllib.load(f)
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"malformed TOML in {path}: {exc}") from exc
+
+
+def _table(spec, name, required=True):
+    value = spec.get(name)
+    if value is None:
+        if required:
+            raise ValueError(f"missing [{name}] table")
+        return None
+    if not isinstance(value, dict):
+        raise ValueError(f"[{name}] must be a table, got {value!r}")
+    return value
+
+
+def _keys(section, table, required, optional=()):
+    unknown = sorted(set(table) - set(required) - set(optional))
+    if unknown:
+        raise ValueError(
+            f"[{section}] has unknown key(s) {unknown}; expected {list(required)}"
+            + (f" and optionally {list(optional)}" if optional else "")
+        )
+    missing = [k for k in required if k not in table]
+    if missing:
+        raise ValueError(f"[{section}] is missing {missing}")
+
+
+def _program(section, table, times):
+    """A `Force` or `Displacement` from `{force = ...}` or `{displacement = ...}`."""
+    kinds = [k for k in ("force", "displacement") if k in table]
+    if len(kinds) != 1 or len(table) != 1:
+        raise ValueError(
+            f"[{section}] must have exactly one key, force or displacement; got "
+            f"{sorted(table)}"
+        )
+    kind = kinds[0]
+    value = table[kind]
+    if isinstance(value, dict):  # piecewise-linear {t = [...], value = [...]}
+        _keys(f"{section}.{kind}", value, ("t", "value"))
+        t = np.asarray(value["t"], dtype=float)
+        v = np.asarray(value["value"], dtype=float)
+        if t.ndim != 1 or t.shape != v.shape or t.size < 1:
+            raise ValueError(
+                f"[{section}] {kind}: t and value must be lists of equal length, got "
+                f"{value['t']!r} and {value['value']!r}"
+            )
+        if not (np.diff(t) > 0).all():
+            raise ValueError(
+                f"[{section}] {kind}: t must be increasing, got {value['t']!r}"
+            )
+        values = np.interp(np.asarray(times), t, v)
+    elif isinstance(value, (int, float)) and not isinstance(value, bool):
+        values = float(value)
+    elif isinstance(value, list):
+        values = np.asarray(value, dtype=float)
+        if values.shape != (len(times),):
+            raise ValueError(
+                f"[{section}] {kind}: a list needs one value per time point "
+                f"({len(times)}), got {len(value)}"
+            )
+    else:
+        raise ValueError(
+            f"[{section}] {kind} must be a number, a list (one value per time) or "
+            f"{{t = [...], value = [...]}}, got {value!r}"
+        )
+    return Force(values) if kind == "force" else Displacement(values)
+
+
+def from_spec(
+    spec: dict, *, n: int | None = None, steps: int | None = None, dtype=None
+) -> tuple[Scene, dict]:
+    """Build `(scene, solve_options)` from a scene-file dict (see `read_toml` and the
+    README section "Scene files"). `n` overrides the grid shape with `(n, n)`; `steps`
+    the number of time points (only with `[time] end = ...`)."""
+    if not isinstance(spec, dict):
+        raise TypeError(f"spec must be a dict, got {spec!r}")
+    unknown = sorted(set(spec) - set(_SECTIONS))
+    if unknown:
+        raise ValueError(
+            f"unknown top-level key(s) {unknown}; expected {list(_SECTIONS)}"
+        )
+
+    grid_t = _table(spec, "grid")
+    _keys("grid", grid_t, ("shape", "size"), ("periodic",))
+    shape = grid_t["shape"]
+    if n is not None:
+        shape = (_check_int("n", n, 2),) * 2
+    grid = Grid(shape, grid_t["size"], periodic=grid_t.get("periodic", False))
+
+    ind = _table(spec, "indenter")
+    _keys("indenter", ind, ("type", "radius"))
+    if ind["type"] != "sphere":
+        raise ValueError(f'[indenter] type must be "sphere", got {ind["type"]!r}')
+    indenter = Sphere(ind["radius"])
+
+    mat = dict(_table(spec, "material"))
+    kind = mat.pop("type", None)
+    if kind not in _MATERIALS:
+        raise ValueError(
+            f"[material] type must be one of {sorted(_MATERIALS)}, got {kind!r}"
+        )
+    ctor, required, optional = _MATERIALS[kind]
+    _keys("material", mat, required, optional)
+    material = ctor(
+        **{
+            k: np.asarray(v, dtype=float) if isinstance(v, list) else v
+            for k, v in mat.items()
+        }
+    )
+
+    time_t = _table(spec, "time")
+    if "times" in time_t:
+        _keys("time", time_t, ("times",))
+        if steps is not None:
+            raise ValueError("steps cannot override an explicit [time] times list")
+        times = np.asarray(time_t["times"], dtype=float)
+    else:
+        _keys("time", time_t, ("end", "steps"))
+        nt = _check_int("steps", time_t["steps"] if steps is None else steps, 1)
+        end = _check_positive("[time] end", time_t["end"])
+        times = _times(end, nt) if nt > 1 else np.zeros(1)
+
+    normal = _program("normal", _table(spec, "normal"), times)
+    tangential = {}
+    for direction in ("x", "y"):
+        table = _table(spec, direction, required=False)
+        tangential[direction] = (
+            None if table is None else _program(direction, table, times)
+        )
+
+    contact = _table(spec, "contact", required=False) or {}
+    _keys("contact", contact, (), ("friction", "coupling", "slip"))
+    solver = _table(spec, "solver", required=False) or {}
+    _keys("solver", solver, (), _SOLVER_KEYS)
+
+    scene = Scene(
+        grid,
+        indenter,
+        material,
+        times,
+        normal=normal,
+        x=tangential["x"],
+        y=tangential["y"],
+        friction=contact.get("friction", 0.0),
+        coupling=contact.get("coupling", "none"),
+        slip=contact.get("slip", "incremental"),
+    )
+    return _cast(scene, dtype), dict(solver)
+
+
+def from_toml(
+    path, *, n: int | None = None, steps: int | None = None, dtype=None
+) -> tuple[Scene, dict]:
+    """`(scene, solve_options)` from a TOML scene file; solve with
+    `jc.solve(scene, **solve_options)`."""
+    return from_spec(read_toml(path), n=n, steps=steps, dtype=dtype)

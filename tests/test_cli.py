@@ -1,0 +1,212 @@
+"""The command-line tool: `jaxcontact presets`, `jaxcontact run PRESET_OR_FILE`.
+
+Called in-process through `main([...])` (exit status returned) at tiny sizes; one
+subprocess call checks the real exit status of `python -m jaxcontact`. The zener runs
+use the same scene shape as tests/test_presets.py (n = 24, 7 time points), so within
+one pytest session they share its compiled program.
+"""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import jax
+import numpy as np
+import pytest
+
+import jaxcontact as jc
+from jaxcontact._cli import main
+
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLE = ROOT / "examples" / "ramp_to_sliding.toml"
+
+# A scene file that describes exactly the `zener` preset at n = 24, 7 time points.
+ZENER_TOML = """
+name = "zener_file"
+[grid]
+shape = [24, 24]
+size = {size!r}
+[indenter]
+type = "sphere"
+radius = 10e-3
+[material]
+type = "zener"
+mu_inf = 1.93e6
+mu_0 = 482500.0
+tau = 0.01
+poisson = 0.3
+[time]
+end = 0.03
+steps = 7
+[normal]
+force = 0.15
+[contact]
+slip = "total"
+"""
+
+
+def _zener_toml(path):
+    size = float(jc.presets.zener(n=24, steps=7).grid.size[0])
+    path.write_text(ZENER_TOML.format(size=size))
+    return path
+
+
+def _load(path):
+    data = np.load(path)
+    return {k: data[k] for k in data.files}, json.loads(str(data["metadata"]))
+
+
+def test_presets_lists_every_preset(capsys):
+    assert main(["presets"]) == 0
+    out = capsys.readouterr().out
+    for name, text in jc.presets.available().items():
+        assert name in out and text in out
+
+
+def test_run_hertz_prints_the_comparison_and_writes_results(tmp_path, capsys):
+    assert main(["run", "hertz", "--n", "16", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    for row in ("contact radius a [m]", "peak pressure p0 [Pa]", "approach delta [m]"):
+        assert row in out
+    assert "float64" in out
+    arrays, meta = _load(tmp_path / "hertz.npz")
+    assert (tmp_path / "hertz.png").stat().st_size > 0
+    assert meta["preset"] == "hertz" and meta["parameters"]["n"] == 16
+    assert meta["units"] and meta["versions"]["jax"] == jax.__version__
+    # Load balance: the pressure integrates to W = 0.15 N (solver rtol 1e-8).
+    cell = (float(meta["size"]) / 16) ** 2
+    np.testing.assert_allclose(arrays["pressure"].sum() * cell, 0.15, rtol=1e-7)
+    # 16 cells over 4 a: the approach is Hertz's within 3% (coarse grid).
+    np.testing.assert_allclose(arrays["approach"], jc.presets.table2_hertz().approach,
+                               rtol=3e-2)
+
+
+def test_run_hertz_float32(tmp_path, capsys):
+    assert main(["run", "hertz", "--n", "16", "--float32", "--out", str(tmp_path)]) == 0
+    assert "float32" in capsys.readouterr().out
+    arrays, meta = _load(tmp_path / "hertz.npz")
+    assert arrays["pressure"].dtype == np.float32 and meta["dtype"] == "float32"
+    cell = (float(meta["size"]) / 16) ** 2
+    np.testing.assert_allclose(arrays["pressure"].sum() * cell, 0.15, rtol=1e-4)
+
+
+def test_run_preset_writes_npz_metadata_and_plots(tmp_path, capsys):
+    argv = ["run", "zener", "--n", "24", "--steps", "7", "--out", str(tmp_path)]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert "7/7 steps converged" in out
+    assert "step" in out and "stick" in out  # the per-step progress table
+    arrays, meta = _load(tmp_path / "zener.npz")
+    assert meta["preset"] == "zener"
+    assert meta["parameters"]["n"] == 24 and meta["parameters"]["steps"] == 7
+    assert meta["parameters"]["ratio"] == 4.0
+    assert meta["units"]["pressure"] == "Pa" and meta["converged"] is True
+    assert set(meta["versions"]) >= {"jaxcontact", "jax", "numpy", "python"}
+    assert arrays["pressure"].shape == (7, 24, 24)
+    assert arrays["shear"].shape == (7, 2, 24, 24)
+    assert arrays["times"].shape == (7,) and arrays["x"].shape == (24,)
+    # Load balance at every step.
+    np.testing.assert_allclose(arrays["normal_force"], 0.15, rtol=1e-7)
+    for name in ("profiles", "history"):
+        assert (tmp_path / f"zener_{name}.png").stat().st_size > 0
+
+
+def test_scene_file_equals_the_preset_it_describes(tmp_path, capsys):
+    # The same scene through the TOML parser and through the preset: same solution.
+    path = _zener_toml(tmp_path / "zener.toml")
+    out = tmp_path / "out"
+    assert main(["run", str(path), "--out", str(out)]) == 0
+    from_file, meta = _load(out / "zener_file.npz")
+    assert meta["scene_file"] == str(path)
+    assert meta["scene"]["material"]["type"] == "zener"
+    assert main(["run", "zener", "--n", "24", "--steps", "7", "--out", str(out)]) == 0
+    preset, _ = _load(out / "zener.npz")
+    np.testing.assert_allclose(from_file["approach"], preset["approach"], rtol=1e-12)
+    np.testing.assert_allclose(from_file["pressure"], preset["pressure"], rtol=0,
+                               atol=1e-9 * preset["pressure"].max())
+
+
+def test_example_scene_file_parses_with_overrides():
+    scene, options = jc.presets.from_toml(EXAMPLE)
+    assert scene.grid.shape == (64, 64) and scene.times.shape == (41,)
+    assert isinstance(scene.material, jc.Zener) and scene.coupling == "full"
+    np.testing.assert_allclose(scene.x.values(scene.times)[-1], 20e-6)
+    np.testing.assert_allclose(scene.x.values(scene.times)[20], 10e-6)  # linear ramp
+    assert options == {"rtol": 1e-8}
+    small, _ = jc.presets.from_toml(EXAMPLE, n=16, steps=5)
+    assert small.grid.shape == (16, 16) and small.times.shape == (5,)
+
+
+@pytest.mark.parametrize(
+    "body, message",
+    [
+        ("grid = [", "malformed TOML"),
+        (ZENER_TOML.replace("poisson = 0.3", "poisson = 0.7"), "poisson"),
+        (ZENER_TOML.replace("tau = 0.01", "tau = -1.0"), "tau"),
+        (ZENER_TOML.replace("poisson = 0.3", "poisson = 0.3\ncolour = 1"), "colour"),
+        (ZENER_TOML.replace('type = "zener"', 'type = "steel"'), "steel"),
+        (ZENER_TOML.replace('type = "sphere"', 'type = "cone"'), "cone"),
+        (ZENER_TOML.replace("force = 0.15", "force = [0.1, 0.2]"), "one value per time"),
+        (ZENER_TOML.replace("force = 0.15", 'force = "heavy"'), "heavy"),
+        (ZENER_TOML.replace("force = 0.15", "force = 0.15\ndisplacement = 1e-6"),
+         "exactly one key"),
+        (ZENER_TOML.replace("[normal]\nforce = 0.15", ""), r"missing \[normal\]"),
+        (ZENER_TOML.replace('slip = "total"', 'slip = "some"'), "slip"),
+        (ZENER_TOML + "\n[extra]\na = 1\n", "extra"),
+        (ZENER_TOML.replace("steps = 7", "steps = 0"), "steps"),
+    ],
+)
+def test_bad_scene_file_exits_2_naming_the_problem(tmp_path, capsys, body, message):
+    path = tmp_path / "bad.toml"
+    path.write_text(body.format(size=3e-3) if "{size" in body else body)
+    assert main(["run", str(path), "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "bad.toml" in err
+    assert message.replace("\\", "") in err or pytest.fail(err)
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["run", "nope"], "unknown preset 'nope'"),
+        (["run", "missing.toml"], "does not exist"),
+        (["run", "zener", "--n", "1"], "--n must be >= 2, got 1"),
+        (["run", "zener", "--steps", "0"], "--steps must be >= 1, got 0"),
+        (["run", "zener", "--param", "ratio=0.5"], "ratio"),
+        (["run", "zener", "--param", "colour=1"], "colour"),
+        (["run", "zener", "--param", "ratio"], "KEY=VALUE"),
+        (["run", "hertz", "--steps", "3"], "one load step"),
+        (["run", "weichert", "--param", "material=steel"], "steel"),
+        (["run"], "PRESET_OR_SCENE_FILE"),
+        (["run", "zener", "--n", "many"], "invalid int value"),
+    ],
+)
+def test_bad_arguments_exit_2_naming_the_problem(tmp_path, capsys, argv, message):
+    assert main([*argv, "--out", str(tmp_path)] if len(argv) > 1 else argv) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_module_exit_status_is_2_for_an_unknown_preset(tmp_path):
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    proc = subprocess.run(
+        [sys.executable, "-m", "jaxcontact", "run", "no_such_preset", "--out",
+         str(tmp_path)], capture_output=True, text=True, env=env, timeout=120,
+    )
+    assert proc.returncode == 2
+    assert "unknown preset 'no_such_preset'" in proc.stderr
+
+
+@pytest.mark.slow
+def test_run_example_scene_file(tmp_path, capsys):
+    argv = ["run", str(EXAMPLE), "--n", "24", "--steps", "9", "--out", str(tmp_path)]
+    assert main(argv) == 0
+    arrays, meta = _load(tmp_path / "ramp_to_sliding.npz")
+    assert meta["scene_summary"]["coupling"] == "full"
+    fx, w = arrays["tangential_force"][:, 0], arrays["normal_force"]
+    np.testing.assert_allclose(w, 0.15, rtol=1e-7)
+    assert (np.abs(fx) <= 0.3 * w * (1 + 1e-6)).all()  # Coulomb bound on the total
+    assert np.all(np.diff(np.asarray(arrays["stick_ratio"][1:])) <= 1e-12)  # shrinking
+    assert (tmp_path / "ramp_to_sliding_stick.png").stat().st_size > 0
