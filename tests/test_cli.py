@@ -80,8 +80,9 @@ def test_run_hertz_prints_the_comparison_and_writes_results(tmp_path, capsys):
     cell = (float(meta["size"]) / 16) ** 2
     np.testing.assert_allclose(arrays["pressure"].sum() * cell, 0.15, rtol=1e-7)
     # 16 cells over 4 a: the approach is Hertz's within 3% (coarse grid).
-    np.testing.assert_allclose(arrays["approach"], jc.presets.table2_hertz().approach,
-                               rtol=3e-2)
+    np.testing.assert_allclose(
+        arrays["approach"], jc.presets.table2_hertz().approach, rtol=3e-2
+    )
 
 
 def test_run_hertz_float32(tmp_path, capsys):
@@ -125,8 +126,12 @@ def test_scene_file_equals_the_preset_it_describes(tmp_path, capsys):
     assert main(["run", "zener", "--n", "24", "--steps", "7", "--out", str(out)]) == 0
     preset, _ = _load(out / "zener.npz")
     np.testing.assert_allclose(from_file["approach"], preset["approach"], rtol=1e-12)
-    np.testing.assert_allclose(from_file["pressure"], preset["pressure"], rtol=0,
-                               atol=1e-9 * preset["pressure"].max())
+    np.testing.assert_allclose(
+        from_file["pressure"],
+        preset["pressure"],
+        rtol=0,
+        atol=1e-9 * preset["pressure"].max(),
+    )
 
 
 def test_example_scene_file_parses_with_overrides():
@@ -149,10 +154,15 @@ def test_example_scene_file_parses_with_overrides():
         (ZENER_TOML.replace("poisson = 0.3", "poisson = 0.3\ncolour = 1"), "colour"),
         (ZENER_TOML.replace('type = "zener"', 'type = "steel"'), "steel"),
         (ZENER_TOML.replace('type = "sphere"', 'type = "cone"'), "cone"),
-        (ZENER_TOML.replace("force = 0.15", "force = [0.1, 0.2]"), "one value per time"),
+        (
+            ZENER_TOML.replace("force = 0.15", "force = [0.1, 0.2]"),
+            "one value per time",
+        ),
         (ZENER_TOML.replace("force = 0.15", 'force = "heavy"'), "heavy"),
-        (ZENER_TOML.replace("force = 0.15", "force = 0.15\ndisplacement = 1e-6"),
-         "exactly one key"),
+        (
+            ZENER_TOML.replace("force = 0.15", "force = 0.15\ndisplacement = 1e-6"),
+            "exactly one key",
+        ),
         (ZENER_TOML.replace("[normal]\nforce = 0.15", ""), r"missing \[normal\]"),
         (ZENER_TOML.replace('slip = "total"', 'slip = "some"'), "slip"),
         (ZENER_TOML + "\n[extra]\na = 1\n", "extra"),
@@ -192,8 +202,19 @@ def test_bad_arguments_exit_2_naming_the_problem(tmp_path, capsys, argv, message
 def test_module_exit_status_is_2_for_an_unknown_preset(tmp_path):
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     proc = subprocess.run(
-        [sys.executable, "-m", "jaxcontact", "run", "no_such_preset", "--out",
-         str(tmp_path)], capture_output=True, text=True, env=env, timeout=120,
+        [
+            sys.executable,
+            "-m",
+            "jaxcontact",
+            "run",
+            "no_such_preset",
+            "--out",
+            str(tmp_path),
+        ],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
     )
     assert proc.returncode == 2
     assert "unknown preset 'no_such_preset'" in proc.stderr
