@@ -23,7 +23,6 @@ from ._operator import HalfSpace as HalfSpace
 from ._scene import Scene as Scene
 from ._solution import Solution as Solution
 from ._solve import solve as solve
-from ._sweep import sweep as sweep
 from ._solve_normal import NormalSolution as NormalSolution, solve_normal as solve_normal
 from ._subsurface import subsurface_stress as subsurface_stress
 from ._solver.normal import PolonskyKeer as PolonskyKeer
