@@ -5,6 +5,11 @@ coefficients, DC-FFT and conjugate-gradient contact solvers.
 """
 
 from ._analytic import Hertz as Hertz, LeeRadok as LeeRadok
+from ._fit import (
+    fit_prony as fit_prony,
+    IndentationData as IndentationData,
+    PronyFit as PronyFit,
+)
 from ._grid import Grid as Grid
 from ._indenter import (
     AbstractIndenter as AbstractIndenter,
@@ -23,6 +28,7 @@ from ._operator import HalfSpace as HalfSpace
 from ._scene import Scene as Scene
 from ._solution import Solution as Solution
 from ._solve import solve as solve
+from ._sweep import sweep as sweep
 from ._solve_normal import NormalSolution as NormalSolution, solve_normal as solve_normal
 from ._subsurface import subsurface_stress as subsurface_stress
 from ._solver.normal import PolonskyKeer as PolonskyKeer

@@ -1,0 +1,609 @@
+"""`jc.fit_prony`: fit a Prony series to indentation data by running the full contact
+model (`jc.solve`) and differentiating through it.
+
+Parametrisation (positivity by construction; every parameter O(1)):
+
+    g_inf = G_ref exp(theta_inf),  g_i = G_ref exp(theta_g[i]),
+    tau_i = T_ref exp(theta_tau[i]),  poisson = 0.5 sigmoid(theta_nu)  (if fitted)
+
+with `G_ref`, `T_ref` fixed reference scales (the initial instantaneous modulus and
+the data's time span). The objective is the mean squared RELATIVE residual
+
+    loss = mean_k ((y_model(t_k) - y_data(t_k)) / rms(y_data))^2,
+
+dimensionless and O(1) or smaller for any initial guess of the right order. The
+optimiser is Adam (a few robust steps from the heuristic start), then L-BFGS
+(`optax.scale_by_lbfgs`, the direction of `optax.lbfgs`) with an Armijo backtracking
+line search driven from Python. Every evaluation goes through ONE compiled
+value-and-gradient function (the line search, the initial guess and the Gauss-Newton
+Jacobian reuse it), so a fit compiles the model once; two fits of the same shapes (a
+noise study) compile nothing new.
+
+Sensitivities are reported in two forms (`PronyFit.std`, `PronyFit.gradient`):
+
+- `std`: the Gauss-Newton (linearised least-squares) standard deviation of each
+  LOG-parameter, i.e. approximately the relative standard deviation of the parameter:
+  `Cov = sigma^2 (J^T J)^-1`, `J = d(residual)/d(log param)` at the optimum, with
+  `sigma` the noise level (given as `noise_std`, or estimated from the residual as
+  `sqrt(SSR / (n - p))`). A direction the data do not determine gets `inf`.
+- `gradient`: `d(loss)/d(log param)` at the returned parameters (0 at an exact
+  minimum; a check of convergence, not an uncertainty).
+"""
+
+import dataclasses
+import math
+from collections.abc import Callable
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+from jax.flatten_util import ravel_pytree
+
+from ._loading import Displacement, Force
+from ._material.prony import Prony
+from ._scene import Scene
+from ._solve import _operator_for, solve
+from ._sweep import _traced_directions
+
+
+_MAX_STEP = 1.0  # largest change of a log-parameter in one L-BFGS step
+
+# ---------------------------------------------------------------------------------------
+# Data.
+
+
+def _series(name: str, value) -> np.ndarray:
+    if isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name} must be an array of real numbers, got {value!r}")
+    try:
+        arr = np.asarray(value)
+    except Exception as exc:  # pragma: no cover - exotic input
+        raise TypeError(f"{name} must be an array of real numbers, got {value!r}") from exc
+    if arr.dtype == object or arr.dtype.kind not in "iuf":
+        raise TypeError(f"{name} must be an array of real numbers, got dtype {arr.dtype}")
+    if arr.ndim != 1:
+        raise ValueError(f"{name} must be a 1-D array, got shape {arr.shape}")
+    bad = ~np.isfinite(arr)
+    if bad.any():
+        raise ValueError(
+            f"{name} must be finite: NaN or inf at index {int(np.argmax(bad))} "
+            f"(value {arr[np.argmax(bad)]!r})"
+        )
+    return arr
+
+
+class IndentationData(eqx.Module):
+    """Measured indentation curves on a common time axis.
+
+    **Arguments:**
+
+    - `times`: `(nt,)` strictly increasing sample times [time], at least 3.
+    - `force`: optional `(nt,)` normal load `W(t)` [force].
+    - `depth`: optional `(nt,)` indentation depth = rigid-body approach `delta_z(t)`
+      [length], positive into the body.
+
+    At least one of `force`, `depth` is required. Which one is fitted depends on the
+    scene's control mode (see `jc.fit_prony`). Values are checked here: NaN or inf,
+    repeated or decreasing times and length mismatches raise `ValueError`.
+    """
+
+    times: np.ndarray
+    force: np.ndarray | None
+    depth: np.ndarray | None
+
+    def __init__(self, times, force=None, depth=None):
+        times = _series("times", times).astype(float)
+        if times.shape[0] < 3:
+            raise ValueError(f"times needs at least 3 samples, got {times.shape[0]}")
+        steps = np.diff(times)
+        if not (steps > 0).all():
+            k = int(np.argmax(steps <= 0))
+            what = "repeated" if steps[k] == 0 else "decreasing (not monotonic)"
+            raise ValueError(
+                f"times must be strictly increasing: {what} at index {k + 1} "
+                f"(times[{k}]={times[k]!r}, times[{k + 1}]={times[k + 1]!r})"
+            )
+        if force is None and depth is None:
+            raise ValueError("IndentationData needs force, depth, or both (got neither)")
+        out = {}
+        for name, value in (("force", force), ("depth", depth)):
+            if value is None:
+                out[name] = None
+                continue
+            arr = _series(name, value).astype(float)
+            if arr.shape != times.shape:
+                raise ValueError(
+                    f"{name} must have one value per time ({times.shape[0]}), "
+                    f"got length {arr.shape[0]}"
+                )
+            out[name] = arr
+        self.times = times
+        self.force = out["force"]
+        self.depth = out["depth"]
+
+
+# ---------------------------------------------------------------------------------------
+# Parametrisation.
+
+
+def _to_material(theta: dict, refs: dict, fit_poisson: bool) -> Prony:
+    g_ref, t_ref = refs["g_ref"], refs["t_ref"]
+    poisson = 0.5 * jax.nn.sigmoid(theta["poisson"]) if fit_poisson else refs["poisson"]
+    return Prony(
+        g_ref * jnp.exp(theta["g_inf"]),
+        g_ref * jnp.exp(theta["g"]),
+        t_ref * jnp.exp(theta["tau"]),
+        poisson,
+    )
+
+
+def _to_theta(material: Prony, refs: dict, fit_poisson: bool, dtype) -> dict:
+    theta = {
+        "g_inf": jnp.log(jnp.asarray(material.g_inf, dtype) / refs["g_ref"]),
+        "g": jnp.log(jnp.asarray(material.g, dtype) / refs["g_ref"]),
+        "tau": jnp.log(jnp.asarray(material.tau, dtype) / refs["t_ref"]),
+    }
+    if fit_poisson:
+        nu = jnp.asarray(material.poisson, dtype)
+        theta["poisson"] = jnp.log(nu / (0.5 - nu))  # logit(2 nu)
+    return theta
+
+
+# ---------------------------------------------------------------------------------------
+# The model: one compiled objective.
+
+
+@dataclasses.dataclass(frozen=True)
+class _SceneModel:
+    """The contact model as `curve(material, ctx) -> ((nt,) curve, (nt,) converged)`,
+    with `ctx = (scene, operator)`. Hashable (a static argument of the jitted
+    objective): `kind` is `"force"` or `"depth"`, `options` the `jc.solve` keywords."""
+
+    kind: str
+    options: tuple
+
+    def __call__(self, material, ctx):
+        scene, operator = ctx
+        scene = eqx.tree_at(lambda s: s.material, scene, material)
+        sol = solve(scene, operator=operator, **dict(self.options))
+        curve = sol.normal_force if self.kind == "force" else sol.approach
+        return curve, sol.converged
+
+
+@eqx.filter_jit
+def _objective(theta, a, b, ctx, refs, target, scale, model, fit_poisson):
+    """`(value, (curve, converged)), d value / d theta` of
+    `mean(a r^2) + sum(b r)`, `r = (curve - target) / scale`. With `a = 1, b = 0` the
+    loss; with `a = 0, b = e_k` row `k` of the Jacobian of `r`."""
+
+    def h(theta):
+        curve, ok = model(_to_material(theta, refs, fit_poisson), ctx)
+        r = (curve - target) / scale
+        return jnp.mean(a * r**2) + jnp.sum(b * r), (curve, ok)
+
+    return jax.value_and_grad(h, has_aux=True)(theta)
+
+
+class _Evaluator:
+    """Calls the compiled objective, counts the calls."""
+
+    def __init__(self, ctx, refs, target, scale, model, fit_poisson, dtype):
+        self.args = (ctx, refs, target, scale, model, fit_poisson)
+        self.ones = jnp.ones(target.shape, dtype)
+        self.zeros = jnp.zeros(target.shape, dtype)
+        self.calls = 0
+
+    def loss(self, theta):
+        """`(loss, gradient, curve, converged)`; the loss is `inf` where the trial
+        parameters make an invalid material (e.g. two equal relaxation times: the
+        constructor's runtime check fires) so that the caller rejects the step."""
+        self.calls += 1
+        try:
+            (value, (curve, ok)), grad = _objective(theta, self.ones, self.zeros,
+                                                    *self.args)
+        except eqx.EquinoxRuntimeError:
+            inf = jnp.asarray(jnp.inf, self.ones.dtype)
+            return inf, theta, self.zeros, jnp.zeros(self.ones.shape, bool)
+        return value, grad, curve, ok
+
+    def jacobian_row(self, theta, k):
+        self.calls += 1
+        b = self.zeros.at[k].set(1)
+        (_, _), grad = _objective(theta, self.zeros, b, *self.args)
+        return grad
+
+
+# ---------------------------------------------------------------------------------------
+# Result.
+
+
+class PronyFit(eqx.Module):
+    """The result of `jc.fit_prony`.
+
+    - `material`: the fitted `jc.Prony` (`g_inf`, `g`, `tau` sorted by `tau`).
+    - `initial`: the `jc.Prony` the optimiser started from.
+    - `loss`: the final loss (mean squared residual relative to `rms(target)`).
+    - `loss_history`: `(n_iter + 1,)` loss at the start and after every accepted
+      Adam and L-BFGS step (NumPy).
+    - `adam_steps`, `lbfgs_steps`: iterations taken; `evaluations`: model
+      evaluations (one forward and one adjoint solve each).
+    - `converged`: `True` when L-BFGS stopped on its gradient or step tests (not on
+      the iteration bound or a failed line search); `message` says why it stopped.
+    - `solves_converged`: every contact step of the final model run converged.
+    - `times`, `target`, `curve`: `(nt,)` data times, fitted data (force or depth)
+      and the fitted model's curve; `residual = curve - target`. `kind`: `"force"` or
+      `"depth"`.
+    - `std`: dict `g_inf`, `g`, `tau` (and `poisson` when fitted): Gauss-Newton
+      standard deviation of the natural LOG of each parameter (~ relative standard
+      deviation), from `noise_std` or the residual (see the module notes).
+    - `gradient`: dict with the same keys: `d(loss)/d(log param)` at the result.
+    - `noise`: the noise level used for `std` [units of the data].
+    """
+
+    material: Prony
+    initial: Prony
+    loss: float
+    loss_history: np.ndarray
+    adam_steps: int
+    lbfgs_steps: int
+    evaluations: int
+    converged: bool
+    message: str
+    solves_converged: bool
+    times: np.ndarray
+    target: np.ndarray
+    curve: np.ndarray
+    residual: np.ndarray
+    kind: str
+    std: dict
+    gradient: dict
+    noise: float
+
+
+# ---------------------------------------------------------------------------------------
+# Set-up helpers.
+
+
+def _scene_for(data: IndentationData, template: Scene, dtype):
+    """The scene on the data's times, its loading taken from the data when given, and
+    the kind of curve to fit."""
+    times = jnp.asarray(data.times, dtype)
+    if isinstance(template.normal, Displacement):
+        kind, target, driver = "force", data.force, data.depth
+        if target is None:
+            raise ValueError(
+                "scene_template is displacement-controlled (normal=jc.Displacement): "
+                "data.force is required (the force is what is fitted)"
+            )
+        make = Displacement
+    else:
+        kind, target, driver = "depth", data.depth, data.force
+        if target is None:
+            raise ValueError(
+                "scene_template is load-controlled (normal=jc.Force): data.depth is "
+                "required (the depth is what is fitted)"
+            )
+        make = Force
+    if driver is not None:
+        normal = make(jnp.asarray(driver, dtype))
+    else:
+        normal = template.normal
+        value = normal.value
+        if not callable(value) and jnp.ndim(value) == 1 and value.shape != times.shape:
+            raise ValueError(
+                f"scene_template.normal holds {value.shape[0]} values but the data have "
+                f"{times.shape[0]} times: give the loading as a callable of t, a "
+                "scalar, or in the data (IndentationData(force=..., depth=...))"
+            )
+    for name in ("x", "y"):
+        program = getattr(template, name)
+        if program is not None and not callable(program.value) and jnp.ndim(
+                program.value) == 1 and program.value.shape != times.shape:
+            raise ValueError(
+                f"scene_template.{name} holds {program.value.shape[0]} values but the "
+                f"data have {times.shape[0]} times: give it as a callable of t or a scalar"
+            )
+    scene = Scene(template.grid, template.indenter, template.material, times, normal,
+                  template.x, template.y, template.friction, template.coupling,
+                  template.slip)
+    return scene, kind, jnp.asarray(target, dtype)
+
+
+def _initial_times(times: np.ndarray, n: int) -> np.ndarray:
+    """`n` log-spaced times strictly inside [first step, span] of the data."""
+    span = float(times[-1] - times[0])
+    first = float(times[1] - times[0])
+    return np.geomspace(first, span, n + 2)[1:-1]
+
+
+def _initial_guess(ev: _Evaluator, refs, fit_poisson, kind, target, n, t_init, dtype,
+                   poisson):
+    """Apparent elastic moduli along the curve -> `g_inf` (late) and `sum(g)` (early).
+
+    One (or, under load control, two) evaluations of the model with an effectively
+    elastic series (arms 1e-9 of the modulus) at a trial modulus `G`; under
+    displacement control the force is proportional to `G`, under load control the
+    depth goes as `G^(-2/3)` (Hertz), which turns each sample into an apparent
+    modulus. A heuristic: pass `init=` to override.
+    """
+    g_trial = float(refs["g_ref"])
+    tgt = np.asarray(target)
+    apparent = None
+    for _ in range(1 if kind == "force" else 2):
+        trial = Prony(g_trial, np.full(n, 1e-9 * g_trial), t_init, poisson)
+        _, _, curve, _ = ev.loss(_to_theta(trial, refs, fit_poisson, dtype))
+        curve = np.asarray(curve)
+        if kind == "force":
+            use = (np.abs(curve) > 0.05 * np.max(np.abs(curve))) & (tgt > 0)
+            ratio = tgt[use] / curve[use]
+        else:
+            use = (tgt > 0.05 * np.max(tgt)) & (curve > 0)
+            ratio = (curve[use] / tgt[use]) ** 1.5
+        if not use.any() or not np.all(np.isfinite(ratio)):
+            break
+        apparent = g_trial * ratio
+        g_trial = float(np.median(apparent))
+    if apparent is None:
+        g0 = g_inf = g_trial
+    else:
+        g0, g_inf = float(np.max(apparent)), float(np.min(apparent))
+    arms = max(g0 - g_inf, 0.05 * g0)
+    return Prony(g_inf, np.full(n, arms / n), t_init, poisson)
+
+
+def _check_int(name, value, minimum):
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"{name} must be an integer, got {value!r}")
+    if value < minimum:
+        raise ValueError(f"{name} must be >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def _split(theta: dict, values: np.ndarray) -> dict:
+    """Per-parameter pieces of a flat vector laid out like `ravel_pytree(theta)`."""
+    _, unravel = ravel_pytree(theta)
+    return {k: np.asarray(v) for k, v in unravel(jnp.asarray(values)).items()}
+
+
+# ---------------------------------------------------------------------------------------
+# The entry point.
+
+
+def fit_prony(
+    data: IndentationData,
+    scene_template: Scene,
+    n_terms: int,
+    *,
+    init: Prony | None = None,
+    poisson=None,
+    fit_poisson: bool = False,
+    adam_steps: int = 50,
+    learning_rate: float = 0.05,
+    lbfgs_steps: int = 100,
+    gtol: float | None = None,
+    noise_std: float | None = None,
+    solve_options: dict | None = None,
+    _model: Callable | None = None,
+) -> PronyFit:
+    """Fit a Prony series `G(t) = g_inf + sum_i g_i exp(-t / tau_i)` to indentation
+    data, through the full contact model.
+
+    **Main arguments:**
+
+    - `data`: a `jc.IndentationData` (times, and force and/or depth).
+    - `scene_template`: a `jc.Scene` giving the grid, the indenter, the control mode
+      and (unless the data give it) the loading program; its `times` are replaced by
+      `data.times` and its material by the fitted one.
+        - displacement control (`normal=jc.Displacement(...)`): the FORCE is fitted
+          (`data.force` required); the approach is `data.depth` if given, else the
+          template's program evaluated at `data.times` (a callable or a scalar).
+        - load control (`normal=jc.Force(...)`): the DEPTH (approach) is fitted
+          (`data.depth` required); the load is `data.force` if given, else the
+          template's program. Giving both force and depth fits a load-depth loop.
+      Tangential inputs, friction and coupling of the template are kept.
+    - `n_terms`: number of Maxwell arms `n >= 1`.
+
+    **Other arguments:**
+
+    - `init`: the starting `jc.Prony` (`n_terms` arms). Default: a heuristic from the
+      data (apparent elastic moduli; see `_initial_guess`), with relaxation times
+      log-spaced strictly inside [first time step, time span].
+    - `poisson`: Poisson's ratio (fixed unless `fit_poisson`); default: that of the
+      template's material. Under normal indentation alone only `G / (1 - nu)` is
+      identifiable: fitting it needs tangential data (`fit_poisson=True`
+      parametrises it in (0, 0.5)).
+    - `adam_steps`, `learning_rate`: the Adam phase (step size in log-parameters).
+    - `lbfgs_steps`: bound on the L-BFGS iterations. Stops early when the largest
+      `|d loss / d log param|` falls below `gtol` (default `1e-12` in float64, `1e-6`
+      in float32), or when the line search can no longer decrease the loss (the
+      model's own solver tolerance is reached).
+    - `noise_std`: the data's noise standard deviation [data units] for `std`;
+      default: estimated from the residual.
+    - `solve_options`: keywords for `jc.solve` (`rtol`, `scheme`, ...).
+
+    **Returns:** a `jc.PronyFit` (fitted material, loss history, sensitivities).
+
+    **Raises:** `ValueError` for data that cannot be fitted (missing force/depth for
+    the control mode, fewer samples than parameters, a target that is zero throughout,
+    times that do not match the template's loading arrays), `TypeError` for wrong
+    argument types.
+
+    Cost: every iteration is one forward solve and one adjoint (implicit) solve of
+    the whole time history; the Gauss-Newton sensitivities take one more per sample.
+    """
+    # -- Initial set-up ----------------------------------------------------------------
+    if not isinstance(data, IndentationData):
+        raise TypeError(f"data must be a jc.IndentationData, got {data!r}")
+    if not isinstance(scene_template, Scene):
+        raise TypeError(f"scene_template must be a jc.Scene, got {scene_template!r}")
+    n = _check_int("n_terms", n_terms, 1)
+    adam_steps = _check_int("adam_steps", adam_steps, 0)
+    lbfgs_steps = _check_int("lbfgs_steps", lbfgs_steps, 0)
+    if not (isinstance(learning_rate, (int, float)) and 0 < learning_rate < 10):
+        raise ValueError(f"learning_rate must be a number in (0, 10), got {learning_rate!r}")
+    if noise_std is not None and not (np.isfinite(noise_std) and noise_std > 0):
+        raise ValueError(f"noise_std must be finite and > 0, got {noise_std!r}")
+    if init is not None and (not isinstance(init, Prony) or init.g.shape != (n,)):
+        raise ValueError(f"init must be a jc.Prony with n_terms={n} arms, got {init!r}")
+    dtype = scene_template.grid.size.dtype
+    if gtol is None:
+        gtol = 1e-12 if jnp.finfo(dtype).bits >= 64 else 1e-6
+    n_params = 1 + 2 * n + int(bool(fit_poisson))
+    if data.times.shape[0] <= n_params:
+        raise ValueError(
+            f"{n_params} parameters need more than {n_params} samples, got "
+            f"{data.times.shape[0]} (use more samples or fewer terms)"
+        )
+    scene, kind, target = _scene_for(data, scene_template, dtype)
+    scale = jnp.sqrt(jnp.mean(target**2))
+    if not float(scale) > 0:
+        raise ValueError(f"data.{kind} is zero at every time: nothing to fit")
+    if poisson is None:
+        poisson = float(scene_template.material.poisson)
+    if fit_poisson and not 0 < poisson < 0.5:
+        raise ValueError(f"poisson must be in (0, 0.5) to be fitted, got {poisson!r}")
+    if not -1 < poisson <= 0.5:
+        raise ValueError(f"poisson must be in (-1, 0.5], got {poisson!r}")
+
+    if _model is None:
+        options = dict(solve_options or {})
+        if "operator" in options:
+            raise ValueError("fit_prony builds the operator itself: leave 'operator' out "
+                             "of solve_options")
+        model = _SceneModel(kind, tuple(sorted(options.items())))
+        ctx = (scene, _operator_for(scene, _traced_directions(scene)))
+    else:  # a stand-in model (tests): `_model = (callable, ctx)`
+        model, ctx = _model
+    g_ref = float(init.relaxation(0.0)) if init is not None else float(
+        scene_template.material.relaxation(0.0))
+    refs = {
+        "g_ref": jnp.asarray(g_ref, dtype),
+        "t_ref": jnp.asarray(float(data.times[-1] - data.times[0]), dtype),
+        "poisson": jnp.asarray(poisson, dtype),
+    }
+    ev = _Evaluator(ctx, refs, target, scale, model, bool(fit_poisson), dtype)
+    if init is None:
+        init = _initial_guess(ev, refs, fit_poisson, kind, target, n,
+                              _initial_times(data.times, n), dtype, poisson)
+    theta = _to_theta(init, refs, fit_poisson, dtype)
+
+    # -- Adam --------------------------------------------------------------------------
+    history = []
+    value, grad, _, _ = ev.loss(theta)
+    if not np.isfinite(float(value)):
+        raise ValueError(f"the model gives a non-finite loss at the initial guess {init!r}")
+    history.append(float(value))
+    adam = optax.adam(learning_rate)
+    adam_update = jax.jit(adam.update)
+    state = adam.init(theta)
+    best = (float(value), theta, grad)
+    steps_adam = 0
+    for _ in range(adam_steps):
+        updates, state = adam_update(grad, state, theta)
+        trial = optax.apply_updates(theta, updates)
+        value_t, grad_t, _, _ = ev.loss(trial)
+        if not np.isfinite(float(value_t)):
+            break  # keep the last finite point; L-BFGS takes over from the best
+        theta, value, grad = trial, value_t, grad_t
+        steps_adam += 1
+        history.append(float(value))
+        if float(value) < best[0]:
+            best = (float(value), theta, grad)
+    value, theta, grad = best
+
+    # -- L-BFGS with Armijo backtracking ---------------------------------------------
+    flat, unravel = ravel_pytree(theta)
+    lbfgs = optax.scale_by_lbfgs()
+    lbfgs_update = jax.jit(lbfgs.update)
+    state = lbfgs.init(flat)
+    g_flat = ravel_pytree(grad)[0]
+    converged, message = False, f"stopped at the iteration bound lbfgs_steps={lbfgs_steps}"
+    steps_lbfgs = 0
+    for _ in range(lbfgs_steps):
+        if float(jnp.max(jnp.abs(g_flat))) <= gtol:
+            converged, message = True, f"gradient below gtol={gtol:g}"
+            break
+        direction, state = lbfgs_update(g_flat, state, flat)
+        slope = float(jnp.vdot(g_flat, direction))
+        if not slope > 0:  # not a descent direction: restart from steepest descent
+            state = lbfgs.init(flat)
+            direction, slope = g_flat, float(jnp.vdot(g_flat, g_flat))
+        # At most a factor e^MAX_STEP per parameter per iteration: the first L-BFGS
+        # steps (identity scale) can be long, and exp() would overflow.
+        alpha, accepted = min(1.0, _MAX_STEP / float(jnp.max(jnp.abs(direction)))), False
+        for _ in range(30):  # bounded backtracking
+            trial = flat - alpha * direction
+            value_t, grad_t, _, _ = ev.loss(unravel(trial))
+            if np.isfinite(float(value_t)) and float(value_t) <= value - 1e-4 * alpha * slope:
+                accepted = True
+                break
+            alpha *= 0.5
+        if not accepted:
+            converged = True
+            message = ("the line search cannot decrease the loss further (the model's "
+                       "solver tolerance is reached)")
+            break
+        step_size = float(jnp.max(jnp.abs(alpha * direction)))
+        flat, value, g_flat = trial, float(value_t), ravel_pytree(grad_t)[0]
+        steps_lbfgs += 1
+        history.append(value)
+        if step_size < 1e-12 * max(1.0, float(jnp.max(jnp.abs(flat)))):
+            converged, message = True, "step below 1e-12 (relative)"
+            break
+    else:
+        if lbfgs_steps and float(jnp.max(jnp.abs(g_flat))) <= gtol:
+            converged, message = True, f"gradient below gtol={gtol:g}"
+    theta = unravel(flat)
+
+    # -- Finish up: curve, sensitivities -------------------------------------------------
+    value, grad, curve, ok = ev.loss(theta)
+    nt = target.shape[0]
+    rows = np.stack([np.asarray(ravel_pytree(ev.jacobian_row(theta, k))[0])
+                     for k in range(nt)])
+    residual = np.asarray(curve) - np.asarray(target)
+    scale_f = float(scale)
+    if noise_std is None:
+        sigma_rel = math.sqrt(float(np.sum((residual / scale_f) ** 2)) / (nt - n_params))
+    else:
+        sigma_rel = float(noise_std) / scale_f
+    if np.all(np.isfinite(rows)):
+        eigval, eigvec = np.linalg.eigh(rows.T @ rows)
+        keep = eigval > 1e-14 * max(float(eigval.max()), 1e-300)
+        inv = np.where(keep, 1 / np.where(keep, eigval, 1), np.inf)
+        var = np.sum(np.where(eigvec**2 > 0, eigvec**2 * inv[None, :], 0), axis=1)
+        std = np.sqrt(var) * sigma_rel
+    else:
+        std = np.full(rows.shape[1], np.nan)
+        message += "; the model's Jacobian is not finite: std is NaN"
+    material = _to_material(theta, refs, fit_poisson)
+    order = np.argsort(np.asarray(material.tau))
+    material = Prony(material.g_inf, material.g[order], material.tau[order],
+                     material.poisson)
+
+    def sorted_split(values):
+        out = _split(theta, values)
+        out["g"], out["tau"] = out["g"][order], out["tau"][order]
+        return out
+
+    return PronyFit(
+        material=material,
+        initial=init,
+        loss=float(value),
+        loss_history=np.asarray(history),
+        adam_steps=steps_adam,
+        lbfgs_steps=steps_lbfgs,
+        evaluations=ev.calls,
+        converged=converged,
+        message=message,
+        solves_converged=bool(np.all(np.asarray(ok))),
+        times=np.asarray(data.times),
+        target=np.asarray(target),
+        curve=np.asarray(curve),
+        residual=residual,
+        kind=kind,
+        std=sorted_split(std),
+        gradient=sorted_split(np.asarray(ravel_pytree(grad)[0])),
+        noise=sigma_rel * scale_f,
+    )
