@@ -120,17 +120,18 @@ def test_hertz_max_shear_031_at_048a():
     """Johnson (1985) section 3.3: tau_1 = 0.31 p0 at z = 0.48 a for nu = 0.3."""
     n = 65
     grid, p, _ = _hertz_grid(n)
-    z = np.linspace(0.3, 0.7, 21)
+    z = np.linspace(0.40, 0.56, 9)
     s = jc.subsurface_stress(grid, p, poisson=NU, depth=z)
     tau = np.asarray(s.max_shear[:, n // 2, n // 2])
     k = int(np.argmax(tau))
     assert abs(tau[k] - 0.31) < 0.003
-    assert abs(z[k] - 0.48) <= 0.021
+    assert abs(z[k] - 0.48) <= 0.021 and 0 < k < len(z) - 1  # an interior maximum
     # the maximum over the whole plane sits on the axis (within a cell)
     plane = np.asarray(s.max_shear[k])
     assert plane.max() <= tau[k] + 2e-3
 
 
+@pytest.mark.slow
 def test_hertz_from_solve_normal():
     """Pressure from the contact solver (not the analytic one): same axis stresses."""
     n = 65
