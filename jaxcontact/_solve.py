@@ -11,7 +11,8 @@ from ._material.elastic import Elastic
 from ._operator import HalfSpace
 from ._scene import Scene, normal_targets, tangential_targets
 from ._solution import Solution
-from ._solver.coupled import StepConfig, contact_step
+from ._solver.coupled import StepConfig
+from ._solver.implicit import differentiable_step
 from ._solver.normal import hertzian_guess
 
 
@@ -86,7 +87,7 @@ def _solve(scene: Scene, operator: HalfSpace, config: StepConfig, history_kind: 
             fresh = hertzian_guess(h0 + history[2], w_target, e_star, area)
             guess = jnp.where(jnp.sum(p_start) > 0, p_start, fresh)
         previous_slip = jnp.zeros_like(s_prev) if use_total_slip else s_prev
-        res = contact_step(
+        res = differentiable_step(
             operator, config, compliance, poisson, friction, h0, history,
             w_target, t_target, previous_slip, p_start, q_start, normal_guess=guess,
         )
@@ -134,6 +135,7 @@ def solve(
     max_steps: int = 2000,
     max_rounds: int = 100,
     resync_every: int = 25,
+    method: str = "joint",
     history: str = "auto",
     scheme: str = "constant",
     operator: HalfSpace | None = None,
@@ -151,6 +153,11 @@ def solve(
     - `max_steps`: iteration bound of each CG solve; `max_rounds`: bound on the
       normal/tangential alternations of a coupled step.
     - `resync_every`: recompute displacements exactly every this many CG iterations.
+    - `method`: how a coupled frictional step is solved: `"joint"` (default: one
+      projected CG over pressure and shear together, with a lagged friction bound) or
+      `"rounds"` (alternating normal and tangential solves). Either falls back to the
+      other safeguards of `_solver/coupled.py` when it fails; uncoupled steps always
+      take one round (exact).
     - `history`: `"auto"` (default: none for an elastic material, the O(Nt) recursion
       for a material with a creep series, the direct sum otherwise), `"recursive"` or
       `"direct"` (the O(Nt^2) sum of the paper, Eqs. 12-13; a reference).
@@ -172,6 +179,8 @@ def solve(
     for name, value in (("max_steps", max_steps), ("max_rounds", max_rounds),
                         ("resync_every", resync_every)):
         _validate.positive_int(name, value)  # TypeError / ValueError naming it
+    if method not in ("joint", "rounds"):
+        raise ValueError(f'method must be "joint" or "rounds", got {method!r}')
     if history not in ("auto", "recursive", "direct"):
         raise ValueError(f'history must be "auto", "recursive" or "direct", got {history!r}')
     if scheme not in ("constant", "linear"):
@@ -209,6 +218,7 @@ def solve(
         max_steps=max_steps,
         max_rounds=max_rounds,
         resync_every=resync_every,
+        method=method,
     )
     if operator is None:
         operator = _operator_for(scene, nd)

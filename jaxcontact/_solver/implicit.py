@@ -1,0 +1,229 @@
+r"""Exact gradients of one contact step by implicit differentiation.
+
+The CG solvers are `lax.while_loop`s, which reverse-mode cannot (and should not) go
+through. Instead, at the converged solution the active sets are frozen (contact cells
+`p > 0`, stick cells, slip cells with their slip direction, gross sliding), and the
+solution `x = (p, q, delta_z, delta_t)` is the root of a smooth residual
+`F(x, theta) = 0` on those sets, with `theta` the step's inputs (compliance, Poisson's
+ratio, friction coefficient, gap, history displacement, previous slip, targets):
+
+- contact cells: zero gap, `(h + u_z - delta_z) / k_z = 0`; other cells: `p = 0`;
+- normal load control: `(A sum p - W) / (A sqrt(n_contact)) = 0`; displacement control:
+  `delta_z` equals its target;
+- stick cells: zero slip increment, `s / k_t = 0` with
+  `s = u_t + history_t - previous_slip - delta_t`; slip cells: `q = -mu p s / |s|`
+  (`nd = 2`), `q = mu p sign(q)` (`nd = 1`, the sign frozen); cells out of contact:
+  `q = 0`; gross sliding under load control: `q = mu p F / |F|` and `delta_t` the mean
+  of `u_t + history_t` over the contact;
+- tangential load control per direction: `(A sum q_d - F_d) / (A sqrt(n_contact)) = 0`;
+  displacement control: `delta_t,d` equals its target,
+
+where `u = C K (q, p)` (the half-space operator of the step, coupling blocks included)
+and `k_z`, `k_t` are the self-compliances of a cell (constant scalings that make the
+rows dimensionless: they do not change the root, only the conditioning). By the
+implicit function theorem `dx/dtheta = -(dF/dx)^-1 dF/dtheta`, so the vector-Jacobian
+product of a cotangent `x_bar` is `theta_bar = -(dF/dtheta)^T lambda` with the ADJOINT
+solve `(dF/dx)^T lambda = x_bar`: one linear solve with the same FFT operator
+(GMRES, matrix-free through `jax.vjp` of `F`; the operator is symmetric so the adjoint
+costs what the forward application costs). Nothing of the CG iterations is stored.
+
+The derivative is that of the solution on its current active sets: exact away from
+active-set changes (a cell entering or leaving contact or the stick zone), where the
+solution is only directionally differentiable.
+"""
+
+import jax
+import jax.numpy as jnp
+from jax.scipy.sparse.linalg import gmres
+
+from .coupled import StepConfig, StepResult, contact_step
+
+
+def _displacements(operator, config: StepConfig, compliance, poisson, p, q):
+    """`(u_z, u_t)` = `C K (q, p)` with the blocks `contact_step` uses."""
+    nd = config.nd
+    p_hat = operator.forward(p)
+    uz_hat = compliance * operator.normal_spectrum(poisson) * p_hat
+    if nd == 0:
+        return operator.inverse(uz_hat), None
+    xx, xy, yy = operator.tangential_blocks(poisson)
+    q_hat = operator.forward(q)
+    if nd == 1:
+        ut_hat = [compliance * xx * q_hat[0]]
+    else:
+        ut_hat = [compliance * (xx * q_hat[0] + xy * q_hat[1]),
+                  compliance * (xy * q_hat[0] + yy * q_hat[1])]
+    if config.coupled:
+        zx, zy = operator.coupling_spectra(poisson)
+        uz_hat = uz_hat + 1j * compliance * zx * q_hat[0]
+        ut_hat[0] = ut_hat[0] - 1j * compliance * zx * p_hat
+        if nd == 2 and zy is not None:
+            uz_hat = uz_hat + 1j * compliance * zy * q_hat[1]
+            ut_hat[1] = ut_hat[1] - 1j * compliance * zy * p_hat
+    return operator.inverse(uz_hat), operator.inverse(jnp.stack(ut_hat))
+
+
+def _spectrum_diagonal(operator, spectrum):
+    """Diagonal entry of the convolution with a real, even `spectrum` (its kernel at
+    zero offset: the mean of the full spectrum, the half-spectrum weighted)."""
+    nx, ny = operator.grid.shape
+    full_ny = ny if operator.grid.periodic else 2 * ny
+    m = spectrum.shape[-1]
+    weights = jnp.full((m,), 2.0, spectrum.dtype).at[0].set(1.0)
+    if full_ny % 2 == 0:
+        weights = weights.at[m - 1].set(1.0)
+    full_nx = spectrum.shape[-2]
+    return jnp.sum(spectrum * weights[None, :]) / (full_nx * full_ny)
+
+
+def _self_compliance(operator, config, compliance, poisson):
+    """`(k_z, k_t)`: normal and tangential displacement of a cell under its own unit
+    traction (positive scalars, used only to scale the residual rows)."""
+    kz = compliance * _spectrum_diagonal(operator, operator.normal_spectrum(poisson))
+    if config.nd == 0:
+        return kz, kz
+    xx, _, _ = operator.tangential_blocks(poisson)
+    return kz, compliance * _spectrum_diagonal(operator, xx)
+
+
+def _residual(operator, config, frozen, x, theta):
+    """`F(x, theta)` on the frozen active sets (see module docs)."""
+    p, q, dz, dt = x
+    compliance, poisson, friction, h, history, previous_slip, w_target, t_target = theta
+    contact, stick, slip_sign, sliding, kz, kt, fixed = frozen
+    area = operator.grid.cell_area
+    n_contact = jnp.sum(contact)
+    scale = area * jnp.sqrt(jnp.maximum(n_contact, 1).astype(p.dtype))
+    any_contact = n_contact > 0
+
+    uz, ut = _displacements(operator, config, compliance, poisson, p, q)
+    gap = h + history[2] + uz - dz * kz
+    f_p = jnp.where(contact, gap / kz, p)
+    if config.normal_force_control:
+        f_dz = jnp.where(any_contact, (area * jnp.sum(p) - w_target) / scale, dz - fixed[0])
+    else:
+        f_dz = dz - w_target / kz
+    if config.nd == 0:
+        return f_p, q, f_dz, dt
+
+    nd = config.nd
+    base = ut + history[:nd] - previous_slip
+    s = base - dt[:, None, None] * kt
+    bound = friction * p
+    if nd == 1:
+        slipping = bound[None] * slip_sign
+    else:
+        mag = jnp.sqrt(jnp.sum(s * s, axis=0))
+        safe = jnp.where(mag > 0, mag, 1.0)
+        slipping = -bound[None] * s / safe[None]
+    f_q = jnp.where(stick[None], s / kt, jnp.where(contact[None], q - slipping, q))
+
+    f_dt = []
+    for d in range(nd):
+        if config.tangential_force_control[d]:
+            f_dt.append(jnp.where(any_contact, (area * jnp.sum(q[d]) - t_target[d]) / scale,
+                                  dt[d] - fixed[1 + d]))
+        else:
+            f_dt.append(dt[d] - t_target[d] / kt)
+    f_dt = jnp.stack(f_dt)
+
+    if all(config.tangential_force_control):
+        # Gross sliding under load control: q = mu p along F; delta_t = mean over the
+        # contact of u_t + history_t (the rigid-body drift has no stick cell to fix it).
+        f_norm = jnp.sqrt(jnp.sum(t_target**2))
+        direction = t_target / jnp.where(f_norm > 0, f_norm, 1.0)
+        f_q_slide = jnp.where(contact[None], q - bound[None] * direction[:, None, None], q)
+        mean = jnp.sum(jnp.where(contact[None], base, 0), axis=(1, 2)) / jnp.maximum(n_contact, 1)
+        f_dt_slide = dt - mean / kt
+        f_q = jnp.where(sliding, f_q_slide, f_q)
+        f_dt = jnp.where(sliding, f_dt_slide, f_dt)
+    return f_p, f_q, f_dz, f_dt
+
+
+def _slip_out(operator, config, x, theta, kt):
+    """Total slip after the step `u_t + history_t - delta_t` (carried to the next)."""
+    p, q, _, dt = x
+    compliance, poisson, _, _, history, _, _, _ = theta
+    _, ut = _displacements(operator, config, compliance, poisson, p, q)
+    return ut + history[: config.nd] - dt[:, None, None] * kt
+
+
+def _make_attach(config: StepConfig, rtol: float, maxiter: int):
+    """A function `x, slip = attach(x, slip, frozen, theta, operator)` that returns its
+    inputs unchanged and whose vector-Jacobian product is the implicit one."""
+
+    @jax.custom_vjp
+    def attach(x, slip, frozen, theta, operator):
+        return x, slip
+
+    def fwd(x, slip, frozen, theta, operator):
+        return (x, slip), (x, frozen, theta, operator)
+
+    def bwd(saved, cotangents):
+        x, frozen, theta, operator = saved
+        x_bar, slip_bar = cotangents
+        kt = frozen[5]
+        if config.nd > 0:
+            _, slip_vjp = jax.vjp(lambda x, theta: _slip_out(operator, config, x, theta, kt),
+                                  x, theta)
+            x_extra, theta_extra = slip_vjp(slip_bar)
+            x_bar = jax.tree.map(jnp.add, x_bar, x_extra)
+        else:
+            theta_extra = None
+
+        _, residual_vjp = jax.vjp(lambda x, theta: _residual(operator, config, frozen, x, theta),
+                                  x, theta)
+
+        def transpose_jacobian(lam):
+            return residual_vjp(lam)[0]
+
+        lam, _ = gmres(transpose_jacobian, x_bar, tol=rtol, atol=0.0, restart=40,
+                       maxiter=maxiter, solve_method="batched")
+        theta_bar = residual_vjp(lam)[1]
+        theta_bar = jax.tree.map(jnp.negative, theta_bar)
+        if theta_extra is not None:
+            theta_bar = jax.tree.map(jnp.add, theta_bar, theta_extra)
+        zero = lambda tree: jax.tree.map(jnp.zeros_like, tree)  # noqa: E731
+        return zero(x), zero(slip_bar), None, theta_bar, zero(operator)
+
+    attach.defvjp(fwd, bwd)
+    return attach
+
+
+def differentiable_step(
+    operator, config: StepConfig, compliance, poisson, friction, h0, history,
+    normal_target, tangential_target, previous_slip, p0, q0, normal_guess=None,
+    *, adjoint_rtol: float | None = None, adjoint_maxiter: int = 20,
+) -> StepResult:
+    """`contact_step` whose pressure, shear, approach, tangential displacement and slip
+    carry exact (implicit) derivatives with respect to every input except the warm
+    starts `p0`, `q0`, `normal_guess` (which do not change the solution).
+
+    The forward solve is `contact_step` on inputs with their derivatives stopped; the
+    derivatives are attached afterwards by `_make_attach` (see the module docs).
+    `adjoint_rtol` (default: the step's `rtol`) and `adjoint_maxiter` (GMRES restarts
+    of 40 iterations) bound the adjoint solve.
+    """
+    sg = jax.lax.stop_gradient
+    res = contact_step(
+        sg(operator), config, sg(compliance), sg(poisson), sg(friction), sg(h0),
+        sg(history), sg(normal_target), sg(tangential_target), sg(previous_slip),
+        sg(p0), sg(q0), normal_guess=None if normal_guess is None else sg(normal_guess),
+    )
+    dtype = h0.dtype
+    kz, kt = _self_compliance(sg(operator), config, sg(compliance), sg(poisson))
+    kz, kt = sg(kz), sg(kt)
+    contact = res.pressure > 0
+    nd = config.nd
+    slip_sign = jnp.sign(res.shear)
+    x = (res.pressure, res.shear, res.approach / kz, res.delta_t / kt)
+    fixed = jnp.concatenate([x[2][None], x[3]])
+    frozen = (contact, res.stick & contact, slip_sign, res.sliding, kz, kt, fixed)
+    theta = (jnp.asarray(compliance, dtype), jnp.asarray(poisson, dtype),
+             jnp.asarray(friction, dtype), h0, history, previous_slip,
+             jnp.asarray(normal_target, dtype), jnp.asarray(tangential_target, dtype))
+    rtol = config.rtol if adjoint_rtol is None else adjoint_rtol
+    attach = _make_attach(config, rtol, adjoint_maxiter)
+    slip = res.slip if nd > 0 else jnp.zeros_like(res.slip)
+    (p, q, dz, dt), slip = attach(x, slip, frozen, theta, operator)
+    return res._replace(pressure=p, shear=q, approach=dz * kz, delta_t=dt * kt, slip=slip)
