@@ -9,6 +9,25 @@ the current pressure with the latest shear, and the tangential solver accepts th
 current shear with the latest pressure (both at their tolerance, with zero iterations).
 Without coupling, one round is exact.
 
+Coupled steps are solved by the joint projected CG of `joint.py` (`method="joint"`,
+the default: one loop over `(p, q)` with the full symmetric operator, several times
+cheaper than the rounds), or by the rounds above (`method="rounds"`). Neither returns
+a wrong answer flagged converged: every result is checked on the contact conditions at
+`rtol` with exact displacements, and a step that fails is retried (vmap-friendly
+`while_loop`s, so nothing extra runs when every step converges):
+
+1. joint failed -> the rounds, warm-started from the joint iterate;
+2. still failing under tangential LOAD control (e.g. the paper's total slip law on a
+   viscoelastic body, where the load-controlled iterations can cycle) -> the load is
+   met by a safeguarded, bracketed root search on the rigid tangential displacement
+   `delta_d` of the load-controlled direction `d` (x if it is load-controlled, else
+   y), each evaluation a displacement-controlled step. The tangential force
+   `F_d(delta_d)` is non-decreasing in `delta_d` (the tangential operator is positive
+   definite; the force saturates at `+-mu W` in gross sliding), so a bracket is grown
+   geometrically from the failed step's `delta_d` and then shrunk by the Illinois
+   variant of regula falsi with bisection safeguards, until the load error is below
+   `rtol mu W`.
+
 All displacements here are `C * K1 * traction + history`, with `C` the step's
 (instantaneous or effective) compliance and `history` a known field (zero for an
 elastic body).
@@ -49,9 +68,12 @@ class StepConfig(NamedTuple):
     max_steps: int
     max_rounds: int
     resync_every: int
+    # Coupled steps: "joint" (joint projected CG, `joint.py`) or "rounds" (block
+    # Gauss-Seidel normal/tangential rounds). Ignored without coupling (one round).
+    method: str = "joint"
 
 
-def contact_step(
+def _rounds_step(
     operator,
     config: StepConfig,
     compliance,
@@ -66,7 +88,7 @@ def contact_step(
     q0: Float[Array, "nd nx ny"],
     normal_guess=None,
 ) -> StepResult:
-    """Solve one coupled step. See the module docs; `history` is `(u_x, u_y, u_z)`."""
+    """One step by normal/tangential rounds (see the module docs)."""
     grid = operator.grid
     area = grid.cell_area
     dtype = h0.dtype
@@ -196,4 +218,182 @@ def contact_step(
         slip=tang.slip + previous_slip, stick=stick, sliding=sliding,
         iterations=iterations, rounds=rounds,
         residual=jnp.maximum(normal.residual, tang.residual), converged=converged,
+    )
+
+
+def contact_step(
+    operator,
+    config: StepConfig,
+    compliance,
+    poisson,
+    friction,
+    h0: Float[Array, "nx ny"],
+    history: Float[Array, "3 nx ny"],
+    normal_target,
+    tangential_target: Float[Array, " nd"],
+    previous_slip: Float[Array, "nd nx ny"],
+    p0: Float[Array, "nx ny"],
+    q0: Float[Array, "nd nx ny"],
+    normal_guess=None,
+) -> StepResult:
+    """Solve one coupled step (see the module docs).
+
+    **Arguments:**
+
+    - `operator`: the `HalfSpace` (unit modulus); `config`: a `StepConfig`.
+    - `compliance`: the step's compliance `C` [1/stress] (`1/G` elastic, `J(0)` or an
+      effective one in a viscoelastic step); `poisson`, `friction`: scalars.
+    - `h0`: initial gap [length], `(nx, ny)`; `history`: the known displacements
+      `(u_x, u_y, u_z)` [length], `(3, nx, ny)`.
+    - `normal_target`: load `W` [force] or approach [length] (per
+      `config.normal_force_control`); `tangential_target`: `(nd,)` forces [force] or
+      rigid tangential displacements [length] per direction.
+    - `previous_slip`: `(nd, nx, ny)` slip before the step [length] (zeros for the
+      total slip law); `p0`, `q0`, `normal_guess`: warm starts [stress].
+
+    **Returns:** a `StepResult`; `converged` is `True` only when the contact
+    conditions hold at `config.rtol` (checked with exact displacements).
+    """
+    if config.method not in ("joint", "rounds"):
+        raise ValueError(f'method must be "joint" or "rounds", got {config.method!r}')
+    args = (operator, config, compliance, poisson, friction, h0, history, normal_target,
+            tangential_target, previous_slip)
+    if config.nd == 0 or not config.coupled:
+        return _rounds_step(*args, p0, q0, normal_guess=normal_guess)
+    if config.method == "joint":
+        from .joint import joint_step  # joint.py imports StepConfig/StepResult from here
+
+        res = joint_step(*args, p0, q0, normal_guess=normal_guess)
+        res = _retry(res, lambda r: _add_work(r, _rounds_step(
+            *args, r.pressure, r.shear, normal_guess=r.pressure)))
+    else:
+        res = _rounds_step(*args, p0, q0, normal_guess=normal_guess)
+    if any(config.tangential_force_control):
+        res = _retry(res, lambda r: _add_work(r, _load_by_displacement(*args, r)))
+    return res
+
+
+def _retry(res: StepResult, fn) -> StepResult:
+    """`fn(res)` if `res` did not converge, else `res`.
+
+    A `while_loop` of at most one pass rather than a `cond`: under `vmap` a `cond`
+    becomes a `select` that always runs both branches, while a batched `while_loop`
+    runs its body only while some member needs it.
+    """
+
+    def cond(carry):
+        r, tried = carry
+        return (~r.converged) & (~tried)
+
+    def body(carry):
+        return fn(carry[0]), jnp.array(True)
+
+    return jax.lax.while_loop(cond, body, (res, jnp.array(False)))[0]
+
+
+def _add_work(before: StepResult, after: StepResult) -> StepResult:
+    """`after`, with the iterations and rounds of `before` included."""
+    return after._replace(iterations=before.iterations + after.iterations,
+                          rounds=before.rounds + after.rounds)
+
+
+_ROOT_STEPS = 40  # evaluations of the load root search (bracketing + Illinois)
+
+
+def _load_by_displacement(operator, config, compliance, poisson, friction, h0, history,
+                          normal_target, tangential_target, previous_slip,
+                          failed: StepResult) -> StepResult:
+    """Meet the tangential load of one direction by a root search on its displacement.
+
+    The direction `d` is x if x is load-controlled, else y (the others keep their
+    control). Each evaluation solves the step with `delta_d` prescribed (by the
+    configured method), warm-started from the last one. See
+    the module docs for the bracketing and the Illinois iteration.
+    """
+    fc = config.tangential_force_control
+    d = fc.index(True)
+    sub_config = config._replace(
+        tangential_force_control=tuple(f if i != d else False for i, f in enumerate(fc)))
+    dtype = h0.dtype
+    target_force = jnp.asarray(tangential_target, dtype)[d]
+    area = operator.grid.cell_area
+    tol = config.rtol
+
+    def evaluate(delta, start: StepResult):
+        targets = jnp.asarray(tangential_target, dtype).at[d].set(delta)
+        args = (operator, sub_config, compliance, poisson, friction, h0, history,
+                normal_target, targets, previous_slip)
+        # One solver per evaluation (no nested fallback: compile time); a failed
+        # evaluation still steers the bracket but cannot be the answer.
+        if config.method == "joint":
+            from .joint import joint_step
+
+            r = joint_step(*args, start.pressure, start.shear, normal_guess=start.pressure)
+        else:
+            r = _rounds_step(*args, start.pressure, start.shear,
+                             normal_guess=start.pressure)
+        force = area * jnp.sum(r.shear[d])
+        scale = area * friction * jnp.sum(r.pressure)  # mu W
+        # Load residual as the tangential solver defines it (relative to mu W).
+        err = jnp.abs(force - target_force) / jnp.where(scale > 0, scale, 1)
+        # Only a converged evaluation can be the answer.
+        err = jnp.where(r.converged & jnp.isfinite(err), err, jnp.inf)
+        return r, force - target_force, err
+
+    # ---- Bracket: from the failed step's delta_d, grow geometrically ------------------
+    # First step: the force error over the stiffness of a stuck contact of the
+    # current size L (~ L / C), floored at 1e-3 of the full slip distance mu W C / L
+    # (any positive scale works: it only sets where the geometric growth starts).
+    d0 = failed.delta_t[d]
+    d0 = jnp.where(jnp.isfinite(d0), d0, 0.0)
+    r0, f0, e0 = evaluate(d0, failed)
+    n_contact = jnp.maximum(jnp.sum(r0.pressure > 0), 1)
+    size = jnp.sqrt(n_contact * area)
+    mu_w = area * friction * jnp.sum(r0.pressure)
+    step0 = compliance * jnp.maximum(jnp.abs(f0), 1e-3 * mu_w) / size
+    step0 = jnp.where(jnp.isfinite(step0) & (step0 > 0), step0, compliance / size)
+    # b: the latest point; a: the other end of the bracket once there is one.
+    init = dict(
+        a=d0, fa=f0, b=d0, fb=f0, last=r0, best=r0, best_err=e0, n=jnp.array(1),
+        bracketed=f0 == 0, step=step0, it=r0.iterations, rounds=r0.rounds,
+    )
+
+    def cond(s):
+        return (s["best_err"] > tol) & (s["n"] < _ROOT_STEPS)
+
+    def body(s):
+        a, fa, b, fb = s["a"], s["fa"], s["b"], s["fb"]
+        # Not bracketed yet: step from b towards the root (F non-decreasing).
+        grow = b - jnp.sign(fb) * s["step"]
+        # Bracketed: regula falsi, safeguarded by bisection when the secant point
+        # falls outside the inner 90 % of the bracket.
+        denom = fb - fa
+        ok = denom != 0
+        secant = b - fb * (b - a) / jnp.where(ok, denom, 1)
+        lo, hi = jnp.minimum(a, b), jnp.maximum(a, b)
+        margin = 0.05 * (hi - lo)
+        inside = ok & (secant > lo + margin) & (secant < hi - margin)
+        x = jnp.where(s["bracketed"], jnp.where(inside, secant, 0.5 * (a + b)), grow)
+        r, fx, ex = evaluate(x, s["last"])
+        better = ex < s["best_err"]
+        best = jax.tree_util.tree_map(lambda n, o: jnp.where(better, n, o), r, s["best"])
+        flipped = jnp.sign(fx) != jnp.sign(fb)
+        # Bracketed: a sign change moves a to the old b; otherwise a is kept and its
+        # value halved (Illinois), which stops regula falsi from stalling on one end.
+        # Not bracketed: a sign change closes the bracket [b, x].
+        a_new = jnp.where(flipped, b, a)
+        fa_new = jnp.where(flipped, fb, jnp.where(s["bracketed"], 0.5 * fa, fa))
+        return dict(
+            a=a_new, fa=fa_new, b=x, fb=fx, last=r, best=best,
+            best_err=jnp.minimum(ex, s["best_err"]), n=s["n"] + 1,
+            bracketed=s["bracketed"] | flipped, step=2 * s["step"],
+            it=s["it"] + r.iterations, rounds=s["rounds"] + r.rounds,
+        )
+
+    s = jax.lax.while_loop(cond, body, init)
+    best = s["best"]
+    return best._replace(
+        iterations=s["it"], rounds=s["rounds"],
+        residual=jnp.maximum(best.residual, s["best_err"]),
+        converged=best.converged & (s["best_err"] <= tol),
     )

@@ -1,0 +1,580 @@
+r"""One coupled frictional step solved JOINTLY: one projected CG loop over `(p, q)`.
+
+The rounds of `coupled.contact_step` (block Gauss-Seidel: a full normal solve, then a
+full tangential solve, repeated until nothing changes) gain only a factor ~0.1 per
+round at `nu = 0.3`, and every round restarts both CGs from scratch. Here the normal
+and the tangential problems are iterated together with the full symmetric half-space
+operator
+
+    [u_z]       [K_zz  K_zt] [p]
+    [u_t] = C   [K_tz  K_tt] [q]          (K_tz = K_zt^T: reciprocal theorem)
+
+applied ONCE per iteration (forward FFTs of the direction's `p` and `q` components,
+the spectra combined with every block of the coupling mode, inverse FFTs). The
+conditions solved are those of the two separate solvers at a common `(p, q)`:
+
+- normal: `g = h + u_z - delta_z >= 0`, `p >= 0`, `p g = 0`, with the load
+  `A sum p = W` (load control, `delta_z` its multiplier) or `delta_z` prescribed;
+- tangential (incremental Coulomb law): `ds = b + u_t - delta_t` is `0` on stick cells
+  (`|q| < mu p`) and opposite to `q` on slip cells (`|q| = mu p`), with load or
+  displacement control per direction;
+
+with `h = h0 + history_z` and `b = history_t - previous_slip` (the coupling terms are
+part of the operator). Convergence is tested on the residuals of `normal._evaluate`
+and `tangential.tangential_cg` (same definitions, same `rtol`, loads included) with
+exact displacements.
+
+**The friction bound is lagged.** Coulomb friction is not associated: the problem is
+not a minimisation, and with the bound `mu p` of the current pressure the iteration is
+not symmetric. Two current-bound variants were tried and dropped (see the benchmark
+notes in `benchmarks/joint_vs_rounds.py`): projecting `q` onto the moving discs after
+every step thrashes (hundreds of iterations), and "slaving" the slip shear to the
+pressure inside the search direction is fast when it converges but falls into limit
+cycles at the contact edge in about half of a parameter sweep. Here the bound `B` is
+frozen, which makes the inner problem the CONVEX quadratic programme
+
+    min 1/2 t.C K t + p.(h - delta_z) + q.(b - delta_t),  p >= 0,  |q_i| <= B_i,
+
+(plus the load constraints), and it is updated to `mu p` (slip cells follow) as soon as
+the inner residual has dropped below `sigma` times the residual after the previous
+update: an inexact outer loop on the bound only (about 8 updates to reach `1e-8`).
+
+**Inner iteration** (projected, preconditioned, locally optimal CG):
+
+- free variables: `p` on contact cells (Polonsky & Keer: clip at zero after the step,
+  re-entry of penetrating cells, mean-free directions and rescaling for load control);
+  `q` on stick cells and on released slip cells (wrong-sign slip) as vectors, and the
+  rotation of slip cells along their disc, with the disc curvature `lambda / B` in the
+  preconditioner and the step (`tangential.py`);
+- block-diagonal preconditioner from the operator's diagonal: `p` by `1 / C K_zz(0)`,
+  `q` by `1 / (C K_tt(0) + curvature)`, with the mean removal (normal load) and the
+  oblique load-preserving projection of `tangential.py` (tangential loads); the
+  projection is block-diagonal because each load involves only `p` or only `q`;
+- the step minimises the quadratic exactly over the subspace spanned by the
+  preconditioned gradient's `p` part, its `q` part, and the previous step (a 3x3
+  system): one exact line search per block, and the CG recurrence (the 2-d subspace
+  `{z, previous}` is CG for a quadratic). Its quadratic forms are evaluated in Fourier
+  space (Parseval), so they need no inverse transform: one forward transform of the
+  direction and one inverse transform of the displacement increment per iteration;
+- changes outside the search direction (clipping, re-entry, rescaling, projection
+  onto the discs, load fixes) are not lost and cost no extra inverse transform: they
+  are carried to the next iteration, whose forward transform includes them, and whose
+  step is computed with the exact gradient (Parseval correction);
+- restart (drop the previous step) when an active set changes; an exact displacement
+  every `resync_every` iterations against round-off drift.
+
+Gross sliding under tangential load control (`|F| >= mu W`) is handled as in
+`coupled.py`: `q = B F/|F|` on every contact cell, only `p` is iterated, the tangential
+residual is zero, and the bound updates converge to `q = mu p F/|F|`.
+"""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .coupled import StepConfig, StepResult
+
+_SIGMA = 0.1  # bound update when the inner residual < sigma x residual at last update
+# Outside changes smaller than this fraction of (residual x max p) for p, or
+# (residual x max B) for q, are left out of the tracked displacement (certified later).
+_FOLD_P = 1e-3
+_FOLD_Q = 1e-4
+_STICK_TOL = 1e-10  # as tangential.py
+_DEBUG = False
+_UPD_RESTART = False  # drop the previous step at bound updates
+_ZIGZAG = True  # cells bound to their disc by the last step are not released at once
+_SET_RESTART = 1  # 1: drop the previous step when an active set changes
+
+
+def _safe_div(a, b):
+    ok = b != 0
+    return jnp.where(ok, a / jnp.where(ok, b, 1), jnp.zeros_like(a))
+
+
+# Vector fields are (nd, nx, ny). Component sums are written out: XLA:CPU runs a
+# reduction over the leading axis fused with elementwise work several times slower.
+def _dot(a, b):
+    out = a[0] * b[0]
+    for i in range(1, a.shape[0]):
+        out = out + a[i] * b[i]
+    return out
+
+
+def _inv_norm(q):
+    """`1 / |q|` per cell (0 where `q = 0`)."""
+    m2 = _dot(q, q)
+    pos = m2 > 0
+    return jnp.where(pos, jax.lax.rsqrt(jnp.where(pos, m2, 1.0)), 0.0)
+
+
+def _sum2(a):
+    """Per-component totals `(nd,)` of a vector field."""
+    return jnp.sum(a, axis=(-2, -1))
+
+
+def _project(q, bound):
+    """Each cell's shear onto its disc `|q| <= bound`."""
+    m2 = _dot(q, q)
+    out = m2 > bound * bound
+    factor = jnp.where(out, bound * jax.lax.rsqrt(jnp.where(out, m2, 1.0)), 1.0)
+    return q * factor[None]
+
+
+def _solve_small(m, rhs):
+    """A 1x1 or 2x2 linear system in closed form (no LAPACK call inside the loop)."""
+    if m.shape[0] == 1:
+        return rhs / m[0, 0]
+    det = m[0, 0] * m[1, 1] - m[0, 1] * m[1, 0]
+    return jnp.stack([m[1, 1] * rhs[0] - m[0, 1] * rhs[1],
+                      m[0, 0] * rhs[1] - m[1, 0] * rhs[0]]) / det
+
+
+def _solve3(h, g):
+    """Minimiser `a = -H^{-1} g` of `g.a + a.H a / 2` for a 3x3 positive semidefinite
+    `H`, robust to zero or dependent basis vectors (Jacobi scaling, a tiny ridge)."""
+    d = jnp.diagonal(h)
+    s = jnp.where(d > 0, jax.lax.rsqrt(jnp.where(d > 0, d, 1.0)), 0.0)
+    hs = h * s[:, None] * s[None, :] + jnp.diag(jnp.where(d > 0, 1e-12, 1.0))
+    gs = g * s
+    # Gaussian elimination without pivoting (hs is SPD with unit diagonal).
+    a = [[hs[i, j] for j in range(3)] for i in range(3)]
+    b = [-gs[i] for i in range(3)]
+    for k in range(3):
+        for i in range(k + 1, 3):
+            f = a[i][k] / a[k][k]
+            for j in range(k, 3):
+                a[i][j] = a[i][j] - f * a[k][j]
+            b[i] = b[i] - f * b[k]
+    x = [None] * 3
+    for i in (2, 1, 0):
+        acc = b[i]
+        for j in range(i + 1, 3):
+            acc = acc - a[i][j] * x[j]
+        x[i] = acc / a[i][i]
+    return jnp.stack(x) * s
+
+
+def _parseval_weights(grid):
+    """Weights `w` and normaliser `N` with `a.b = sum(w Re(conj(a^) b^)) / N` for the
+    spectra `a^ = forward(a)` of the operator (rfft along the last axis)."""
+    nx, ny = grid.shape
+    n_fft = ny if grid.periodic else 2 * ny
+    count = nx * ny if grid.periodic else 4 * nx * ny
+    w = np.full(n_fft // 2 + 1, 2.0)
+    w[0] = 1.0
+    if n_fft % 2 == 0:
+        w[-1] = 1.0
+    return w, float(count)
+
+
+def joint_step(*args, **kwargs) -> StepResult:
+    """Solve one coupled step jointly; a drop-in for the rounds of `contact_step`.
+
+    Arguments as `coupled.contact_step`: `(operator, config, compliance, poisson,
+    friction, h0, history, normal_target, tangential_target, previous_slip, p0, q0,
+    normal_guess=None)`. `config.coupled` must be `True` and `config.nd` 1 or 2;
+    `config.max_steps` bounds the joint iterations (`max_rounds` is unused).
+    `StepResult.rounds` counts the friction-bound updates; `iterations` the joint CG
+    iterations.
+    """
+    return joint_solve(*args, **kwargs)[0]
+
+
+def joint_solve(
+    operator,
+    config: StepConfig,
+    compliance,
+    poisson,
+    friction,
+    h0,
+    history,
+    normal_target,
+    tangential_target,
+    previous_slip,
+    p0,
+    q0,
+    normal_guess=None,
+):
+    """`joint_step`, also returning statistics: `applications` (equivalent coupled
+    operator applications: a forward or an inverse transform of all components counts
+    1/2) and `counts` (folded outside changes, periodic resyncs, bound updates,
+    restarts)."""
+    nd = config.nd
+    if nd not in (1, 2) or not config.coupled:
+        raise ValueError("joint_step needs a coupled step with nd = 1 or 2")
+    grid = operator.grid
+    area = grid.cell_area
+    dtype = h0.dtype
+    nx, ny = grid.shape
+    rtol = config.rtol
+    load_n = config.normal_force_control
+    fc_tuple = tuple(bool(f) for f in config.tangential_force_control)
+    fc = jnp.asarray(fc_tuple)
+    any_force = any(fc_tuple)
+    all_force = all(fc_tuple)
+    normal_target = jnp.asarray(normal_target, dtype)
+    tangential_target = jnp.asarray(tangential_target, dtype)
+    friction = jnp.asarray(friction, dtype)
+
+    h = h0 + history[2]
+    b = history[:nd] - previous_slip
+
+    # ---- The coupled operator: symbols (unit-modulus spectra x compliance) ---------
+    nn = compliance * operator.normal_spectrum(poisson)
+    xx, xy, yy = operator.tangential_blocks(poisson)
+    xx = compliance * xx
+    if nd == 2:
+        xy, yy = compliance * xy, compliance * yy
+    zx, zy = operator.coupling_spectra(poisson)
+    izx = 1j * compliance * zx  # u_z <- q_x; u_x <- p is its negative (reciprocity)
+    izy = 1j * compliance * zy if (nd == 2 and zy is not None) else None
+    w_ky, n_par = _parseval_weights(grid)
+    w_ky = jnp.asarray(w_ky, dtype)[None, :]  # (1, ky): broadcasts over kx
+
+    def k_of_p(ph):
+        """Spectra `(u_z, u_t...)` of a pressure spectrum."""
+        out = [nn * ph, -izx * ph]
+        if nd == 2:
+            out.append(-izy * ph if izy is not None else jnp.zeros_like(ph))
+        return jnp.stack(out)
+
+    def k_of_q(qh):
+        """Spectra `(u_z, u_t...)` of a shear spectrum `(nd, ...)`."""
+        qx = qh[0]
+        if nd == 1:
+            return jnp.stack([izx * qx, xx * qx])
+        qy = qh[1]
+        uz = izx * qx + (izy * qy if izy is not None else 0)
+        return jnp.stack([uz, xx * qx + xy * qy, xy * qx + yy * qy])
+
+    def k_full(th):
+        return k_of_p(th[0]) + k_of_q(th[1:])
+
+    def ip(ah, bh):
+        """Real-space inner product from spectra (Parseval)."""
+        prod = jnp.real(jnp.conj(ah) * bh)
+        if prod.ndim == 3:
+            prod = jnp.sum(prod, axis=0)
+        return jnp.sum(w_ky * prod) / n_par
+
+    def forward(x):
+        return operator.forward(x)
+
+    def inverse(uh):
+        return operator.inverse(uh)
+
+    def apply(x):
+        """Displacements `(u_z, u_t...)` of the traction `(p, q...)`: one application."""
+        return inverse(k_full(forward(x)))
+
+    def exact(x):
+        """Exact displacements and the residual scales of the separate solvers,
+        `||C K_zz p||` and `||C K_tt q|| + ||b + C K_tz p||_contact` (1.5 applications:
+        the p and q parts are transformed back separately)."""
+        th = forward(x)
+        up, uq = inverse(k_of_p(th[0])), inverse(k_of_q(th[1:]))
+        contact = friction * x[0] > 0
+        s_n = jnp.sqrt(jnp.sum(up[0] * up[0]))
+        s_t = jnp.sqrt(jnp.sum(uq[1:] * uq[1:])) + jnp.sqrt(
+            jnp.sum(jnp.where(contact[None], up[1:] + b, 0) ** 2))
+        return up + uq, jnp.stack([s_n, s_t])
+
+    # Self-compliances (the operator's diagonal): the kernels at zero offset.
+    c_zz = jnp.sum(w_ky * nn) / n_par
+    c_tt = jnp.sum(w_ky * xx) / n_par
+    w_p = c_tt / c_zz  # preconditioner weight of p relative to q
+
+    f_norm = jnp.sqrt(jnp.sum(tangential_target**2))
+    direction = tangential_target / jnp.where(f_norm > 0, f_norm, 1)
+
+    def sliding_of(p):
+        if not all_force:
+            return jnp.array(False)
+        limit = area * jnp.sum(friction * p)
+        return (f_norm >= limit) & (f_norm > 0)
+
+    # ---- Conditions (normal._evaluate and tangential_cg's evaluate) ------------------
+    def evaluate(x, u, scales, bound, sliding):
+        """Both residuals at `(p, q)` with displacements `u`, the tangential one for
+        the friction bound `bound`."""
+        p, q = x[0], x[1:]
+        contact = p > 0
+        n_contact = jnp.sum(contact)
+        raw = h + u[0]
+        if load_n:
+            dz = jnp.where(
+                n_contact > 0, _safe_div(jnp.sum(jnp.where(contact, raw, 0)), n_contact),
+                jnp.min(raw))
+        else:
+            dz = normal_target
+        g = raw - dz
+        violation = jnp.where(contact, g, jnp.minimum(g, 0))
+        num = jnp.sqrt(jnp.sum(violation * violation))
+        scale = scales[0]
+        res_n = jnp.where(num == 0, 0.0, num / jnp.where(scale > 0, scale, jnp.inf))
+        res_n = jnp.where((num > 0) & (scale == 0), jnp.inf, res_n)
+
+        contact_t = bound > 0
+        w = u[1:] + b
+        stick = contact_t & (_dot(q, q) < (bound * (1 - _STICK_TOL)) ** 2)
+        n_stick = jnp.sum(stick)
+        mean_stick = _safe_div(_sum2(jnp.where(stick[None], w, 0)), n_stick)
+        mean_contact = _safe_div(_sum2(jnp.where(contact_t[None], w, 0)), jnp.sum(contact_t))
+        multiplier = jnp.where(n_stick > 0, mean_stick, mean_contact)
+        dt = jnp.where(fc, multiplier, tangential_target)
+        ds = w - dt[:, None, None]
+        ds_mag = jnp.sqrt(_dot(ds, ds))
+        slip_violation = ds + (ds_mag * _inv_norm(q))[None] * q
+        violation = jnp.where(stick[None], ds, jnp.where(contact_t[None], slip_violation, 0))
+        num = jnp.sqrt(jnp.sum(violation * violation))
+        res_t = jnp.where(num == 0, 0.0, _safe_div(num, scales[1]))
+        res_t = jnp.where((num > 0) & (scales[1] == 0), jnp.inf, res_t)
+        bound_total = area * jnp.sum(bound)
+        load_err = jnp.abs(area * _sum2(q) - tangential_target)
+        load_err = jnp.where(fc, _safe_div(load_err, bound_total), 0.0)
+        res_t = jnp.maximum(res_t, jnp.max(load_err))
+        res_t = jnp.where((bound_total > 0) & ~sliding, res_t, 0.0)
+        return dict(g=g, dz=dz, res_n=res_n, ds=ds, dt=dt, stick=stick, res_t=res_t,
+                    residual=jnp.maximum(res_n, res_t))
+
+    # ---- Loads and projections -----------------------------------------------------
+    def rescale(p):
+        total = area * jnp.sum(p)
+        return p * jnp.where(total > 0, normal_target / jnp.where(total > 0, total, 1), 0.0)
+
+    def fix_load(q, bound):
+        """Shift the stick cells (or, if none, all contact cells) to carry the load."""
+        contact = bound > 0
+        stick = contact & (_dot(q, q) < (bound * (1 - _STICK_TOL)) ** 2)
+        where = jnp.where(jnp.any(stick), stick, contact)
+        count = jnp.sum(where)
+        deficit = _safe_div(tangential_target / area - _sum2(q), count)
+        shift = jnp.where(fc[:, None, None], deficit[:, None, None] * where[None], 0.0)
+        return _project(q + shift, bound)
+
+    def settle_shear(q, bound, follow, sliding):
+        """Shear on the discs `|q| <= bound`: `follow` cells on the boundary (slip
+        cells when the bound is updated), the others projected; loads restored."""
+        q = jnp.where(follow[None], q * (_inv_norm(q) * bound)[None], _project(q, bound))
+        if any_force:
+            q = jnp.where(sliding, q, fix_load(q, bound))
+        if all_force:
+            q = jnp.where(sliding, bound[None] * direction[:, None, None], q)
+        return q
+
+    # ---- Initial state -------------------------------------------------------------
+    p_init = p0 if normal_guess is None else normal_guess
+    p_init = jnp.maximum(jnp.asarray(p_init, dtype), 0)
+    if load_n:
+        p_init = jnp.where(jnp.sum(p_init) > 0, p_init, jnp.ones_like(p_init))
+        p_init = rescale(p_init)
+    else:
+        local = jnp.maximum(normal_target - h, 0) / c_zz
+        p_init = jnp.where(jnp.sum(p_init) > 0, p_init, local)
+    bound_init = friction * p_init
+    sliding_init = sliding_of(p_init)
+    q_init = settle_shear(jnp.asarray(q0, dtype), bound_init, jnp.zeros((nx, ny), bool),
+                          sliding_init)
+    x_init = jnp.concatenate([p_init[None], q_init])
+    u_init, scales_init = exact(x_init)
+    ev_init = evaluate(x_init, u_init, scales_init, bound_init, sliding_init)
+
+    zeros_x = jnp.zeros((1 + nd, nx, ny), dtype)
+    spec = jax.eval_shape(forward, zeros_x)
+    zeros_h = jnp.zeros(spec.shape, spec.dtype)
+    init = dict(
+        x=x_init, u=u_init, bound=bound_init, sliding=sliding_init, scales=scales_init,
+        ev=ev_init, res_ref=ev_init["residual"],
+        c=zeros_x, pending=jnp.array(False),  # outside change not yet in u
+        fresh=jnp.zeros((nx, ny), bool),
+        s=zeros_x, s_h=zeros_h, ks_h=zeros_h, have_prev=jnp.array(False),
+        it=jnp.array(0), certified=jnp.array(True), updates=jnp.array(0),
+        applications=jnp.asarray(1.5, dtype),
+        counts=jnp.zeros(4, jnp.int32),
+    )
+
+    def cond(s):
+        done = (s["ev"]["residual"] <= rtol) & s["certified"]
+        return ~done & (s["it"] < config.max_steps)
+
+    def body(s):
+        x, u, ev, bound, sliding = s["x"], s["u"], s["ev"], s["bound"], s["sliding"]
+        p, q = x[0], x[1:]
+        g, ds, stick = ev["g"], ev["ds"], ev["stick"]
+        residual = ev["residual"]
+        contact = p > 0
+        n_contact = jnp.sum(contact)
+        contact_t = bound > 0
+
+        # -- active sets ------------------------------------------------------------
+        q_hat = q * _inv_norm(q)[None]
+        slip_cells = contact_t & ~stick
+        lam_raw = -_dot(ds, q_hat)
+        release = slip_cells & (lam_raw < 0) & ~sliding
+        if _ZIGZAG:  # cells bound to their disc by the last step are not freed at once
+            release = release & ~s["fresh"]
+        full = (stick | release) & ~sliding
+        if nd == 2:
+            rotate = slip_cells & ~release & ~sliding
+            tt = jnp.where(rotate[None], jnp.stack([-q_hat[1], q_hat[0]]), 0)
+            # Disc curvature lambda / B of the rotation of a slip cell.
+            curv_disc = jnp.where(rotate, _safe_div(jnp.maximum(lam_raw, 0.0), bound), 0.0)
+        else:
+            rotate = jnp.zeros_like(contact)
+            tt = jnp.zeros_like(q)
+            curv_disc = jnp.zeros_like(p)
+
+        # -- reduced gradient, preconditioned load-preserving directions -------------
+        r_p = jnp.where(contact, g, 0)
+        r_q = jnp.where(full[None], ds, tt * _dot(tt, ds)[None])
+        z_p = w_p * r_p
+        if load_n:
+            z_p = jnp.where(contact, z_p - _safe_div(jnp.sum(z_p), n_contact), 0)
+        weight = jnp.where(full, 1.0, jnp.where(rotate, c_tt / (c_tt + curv_disc), 0.0))
+        pr = weight[None] * r_q
+        if any_force:
+            # Oblique projection onto load-preserving directions (tangential.py):
+            # z = P r - P B (B^T P B)^{-1} B^T P r, B c = c on full cells and its
+            # tangential part on rotating cells.
+            n_w = jnp.sum(jnp.where(full, weight, 0))
+            if nd == 2:
+                wt0, wt1 = weight * tt[0], weight * tt[1]
+                m01 = jnp.sum(wt0 * tt[1])
+                m = jnp.stack([jnp.stack([n_w + jnp.sum(wt0 * tt[0]), m01]),
+                               jnp.stack([m01, n_w + jnp.sum(wt1 * tt[1])])])
+            else:
+                m = n_w[None, None]
+            eye = jnp.eye(nd, dtype=dtype)
+            both = fc[:, None] & fc[None, :]
+            m = jnp.where(both, m, eye)
+            rhs = jnp.where(fc, _sum2(pr), 0.0)
+            empty = jnp.where(jnp.trace(jnp.where(both, m, 0.0)) > 0, 0.0, 1.0)
+            coef = jnp.where(fc, _solve_small(m + empty * eye, rhs), 0.0)
+            basis = jnp.where(full[None], coef[:, None, None],
+                              tt * _dot(coef[:, None, None], tt)[None])
+            z_q = pr - weight[None] * basis
+        else:
+            z_q = pr
+        z = jnp.concatenate([z_p[None], z_q])
+
+        # -- transforms: the direction, and the pending outside change ---------------
+        z_h = forward(z)
+        kz_p, kz_q = k_of_p(z_h[0]), k_of_q(z_h[1:])
+        pending = s["pending"]
+        kc_h = jax.lax.cond(pending, lambda: k_full(forward(s["c"])), lambda: zeros_h)
+
+        # -- exact minimisation over span{z_p, z_q, previous step} --------------------
+        def disc(a, b_):
+            return jnp.sum(curv_disc * _dot(a, b_))
+
+        prev = s["s"]
+        have = s["have_prev"]
+        s_h, ks_h = s["s_h"], s["ks_h"]
+        # Gradient along each basis vector, with the pending change's displacement.
+        g1 = jnp.sum(r_p * z_p) + ip(z_h[0], kc_h[0])
+        g2 = jnp.sum(r_q * z_q) + ip(z_h[1:], kc_h[1:])
+        r_prev = jnp.sum(r_p * prev[0]) + jnp.sum(r_q * prev[1:])
+        g3 = jnp.where(have, r_prev + ip(s_h, kc_h), 0.0)
+        h11 = ip(z_h[0], kz_p[0])
+        h12 = ip(z_h[0], kz_q[0])
+        h22 = ip(z_h[1:], kz_q[1:]) + disc(z_q, z_q)
+        h13 = jnp.where(have, ip(z_h[0], ks_h[0]), 0.0)
+        h23 = jnp.where(have, ip(z_h[1:], ks_h[1:]) + disc(z_q, prev[1:]), 0.0)
+        h33 = jnp.where(have, ip(s_h, ks_h) + disc(prev[1:], prev[1:]), 0.0)
+        hm = jnp.stack([jnp.stack([h11, h12, h13]), jnp.stack([h12, h22, h23]),
+                        jnp.stack([h13, h23, h33])])
+        alpha = _solve3(hm, jnp.stack([g1, g2, g3]))
+        alpha = jnp.where(jnp.isfinite(alpha), alpha, 0.0)
+        a1, a2, a3 = alpha[0], alpha[1], alpha[2]
+        step = jnp.concatenate([(a1 * z_p)[None], a2 * z_q]) + a3 * prev
+        step_h = jnp.concatenate([(a1 * z_h[0])[None], a2 * z_h[1:]]) + a3 * s_h
+        kstep_h = a1 * kz_p + a2 * kz_q + a3 * ks_h
+        u_new = u + inverse(kstep_h + kc_h)
+        applications = s["applications"] + 1 + 0.5 * pending
+
+        # -- projections -------------------------------------------------------------
+        x_step = x + step
+        p_step, q_step = x_step[0], x_step[1:]
+        p_new = jnp.maximum(p_step, 0)
+        overlap = (~contact) & (g < 0)  # re-entry of penetrating cells
+        p_new = jnp.where(overlap, jnp.maximum(a1 * w_p * g, 0.0), p_new)
+        if load_n:
+            p_new = jnp.where(jnp.sum(p_new) > 0, p_new, p_init)
+            p_new = rescale(p_new)
+        q_new = settle_shear(q_step, bound, jnp.zeros_like(contact), sliding)
+        x_new = jnp.concatenate([p_new[None], q_new])
+        c_new = x_new - x_step
+        acc = jnp.minimum(residual, 1.0)
+        fold = (jnp.max(jnp.abs(c_new[0])) > _FOLD_P * acc * jnp.max(p_new)) | (
+            jnp.max(jnp.abs(c_new[1:])) > _FOLD_Q * acc * jnp.max(bound))
+        it = s["it"] + 1
+        periodic = it % config.resync_every == 0
+        u_new = jax.lax.cond(periodic, lambda: apply(x_new), lambda: u_new)
+        applications = applications + periodic
+        pending_new = fold & ~periodic
+        ev_new = evaluate(x_new, u_new, s["scales"], bound, sliding)
+        changed = (jnp.any((p_new > 0) != contact) | jnp.any(ev_new["stick"] != stick)
+                   | jnp.any(release) | jnp.any(overlap))
+        if _DEBUG:
+            jax.debug.print(
+                "it {} res_n {:.2e} res_t {:.2e} alpha {} fold {} changed {} dC {} dS {} "
+                "rel {} ov {}", it, ev["res_n"], ev["res_t"], alpha, fold, changed,
+                jnp.sum((p_new > 0) != contact), jnp.sum(ev_new["stick"] != stick),
+                jnp.sum(release), jnp.sum(overlap))
+
+        # -- outer loop: update the friction bound to mu p, with exact displacements -
+        update = (ev_new["residual"] <= _SIGMA * s["res_ref"]) | (
+            ev_new["residual"] <= rtol)
+
+        def new_bound():
+            bd = friction * p_new
+            sl = sliding_of(p_new)
+            follow = (bound > 0) & ~ev_new["stick"] & (p_new > 0) & ~sl
+            xn = jnp.concatenate([p_new[None], settle_shear(q_new, bd, follow, sl)])
+            ue, sce = exact(xn)
+            eve = evaluate(xn, ue, sce, bd, sl)
+            if _DEBUG:
+                jax.debug.print("   bound update: residual {:.2e} (n {:.2e}, t {:.2e})",
+                                eve["residual"], eve["res_n"], eve["res_t"])
+            return xn, ue, bd, sl, sce, eve, eve["residual"]
+
+        def keep():
+            return x_new, u_new, bound, sliding, s["scales"], ev_new, s["res_ref"]
+
+        x_new, u_new, bound_new, sliding_new, scales_new, ev_new, res_ref = jax.lax.cond(
+            update, new_bound, keep)
+        if _SET_RESTART == 1:
+            set_restart = changed
+        elif _SET_RESTART == 2:  # only when variables are freed (Polonsky-Keer)
+            set_restart = jnp.any(release) | jnp.any(overlap)
+        else:
+            set_restart = jnp.array(False)
+        restart = set_restart | (update & _UPD_RESTART)
+        return dict(
+            x=x_new, u=u_new, bound=bound_new, sliding=sliding_new, scales=scales_new,
+            ev=ev_new, res_ref=res_ref,
+            c=c_new, pending=pending_new & ~update,
+            fresh=full & ~ev_new["stick"],
+            s=step, s_h=step_h, ks_h=kstep_h, have_prev=~restart,
+            it=it, certified=update, updates=s["updates"] + update,
+            applications=applications + 1.5 * update,
+            counts=s["counts"] + jnp.stack(
+                [pending_new, periodic, update, restart]).astype(jnp.int32),
+        )
+
+    s = jax.lax.while_loop(cond, body, init)
+
+    # ---- Finish: exact displacements, both residuals with the bound mu p -------------
+    x = s["x"]
+    p = x[0]
+    u, scales = exact(x)
+    ev = evaluate(x, u, scales, friction * p, sliding_of(p))
+    contact = p > 0
+    result = StepResult(
+        pressure=p, shear=x[1:], approach=ev["dz"], delta_t=ev["dt"],
+        slip=ev["ds"] + previous_slip, stick=ev["stick"],
+        sliding=jnp.any(contact) & ~jnp.any(ev["stick"]),
+        iterations=s["it"], rounds=s["updates"], residual=ev["residual"],
+        converged=ev["residual"] <= rtol,
+    )
+    return result, dict(applications=s["applications"] + 1.5, counts=s["counts"])
