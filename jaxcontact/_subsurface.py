@@ -58,8 +58,14 @@ from ._grid import Grid
 
 COMPONENTS = ("sxx", "syy", "szz", "sxy", "sxz", "syz")
 # Component names under the exchange of the x and y axes.
-_SWAP = {"sxx": "syy", "syy": "sxx", "szz": "szz", "sxy": "sxy", "sxz": "syz",
-         "syz": "sxz"}
+_SWAP = {
+    "sxx": "syy",
+    "syy": "sxx",
+    "szz": "szz",
+    "sxy": "sxy",
+    "sxz": "syz",
+    "syz": "sxz",
+}
 
 
 # ----------------------------------------------------------------------------------
@@ -194,8 +200,11 @@ def _principal(sxx, syy, szz, sxy, sxz, syz):
     dxx, dyy, dzz = sxx - q, syy - q, szz - q
     p = jnp.sqrt((dxx**2 + dyy**2 + dzz**2 + 2 * (sxy**2 + sxz**2 + syz**2)) / 6)
     safe = jnp.where(p > 0, p, 1.0)
-    det = (dxx * (dyy * dzz - syz**2) - sxy * (sxy * dzz - syz * sxz)
-           + sxz * (sxy * syz - dyy * sxz))
+    det = (
+        dxx * (dyy * dzz - syz**2)
+        - sxy * (sxy * dzz - syz * sxz)
+        + sxz * (sxy * syz - dyy * sxz)
+    )
     r = jnp.clip(det / (2 * safe**3), -1.0, 1.0)
     phi = jnp.arccos(r) / 3
     high = q + 2 * p * jnp.cos(phi)
@@ -389,33 +398,48 @@ def subsurface_stress(
     if grid.periodic:
         raise ValueError(
             "subsurface_stress supports non-periodic grids only (DC-FFT), got a "
-            "periodic grid")
+            "periodic grid"
+        )
     nx, ny = grid.shape
     dtype = grid.size.dtype
     pressure = _validate.as_float_array("pressure", pressure, dtype=dtype)
     if pressure.shape != (nx, ny):
         raise ValueError(
-            f"pressure must have the grid's shape {(nx, ny)}, got {pressure.shape}")
+            f"pressure must have the grid's shape {(nx, ny)}, got {pressure.shape}"
+        )
     if shear is not None:
         shear = _validate.as_float_array("shear", shear, dtype=dtype)
         if shear.shape != (2, nx, ny):
             raise ValueError(
-                f"shear must have shape (2, nx, ny) = {(2, nx, ny)}, got {shear.shape}")
-    poisson = _validate.scalar("poisson", _validate.poisson_ratio(
-        "poisson", _validate.as_float_array("poisson", poisson, dtype=dtype)))
+                f"shear must have shape (2, nx, ny) = {(2, nx, ny)}, got {shear.shape}"
+            )
+    poisson = _validate.scalar(
+        "poisson",
+        _validate.poisson_ratio(
+            "poisson", _validate.as_float_array("poisson", poisson, dtype=dtype)
+        ),
+    )
     depth = _validate.non_negative(
-        "depth", _validate.as_float_array("depth", depth, dtype=dtype))
+        "depth", _validate.as_float_array("depth", depth, dtype=dtype)
+    )
     if depth.ndim > 1:
-        raise ValueError(f"depth must be a scalar or a 1-D array, got shape {depth.shape}")
+        raise ValueError(
+            f"depth must be a scalar or a 1-D array, got shape {depth.shape}"
+        )
 
     loads = ("p",) if shear is None else ("p", "qx", "qy")
     depths = jnp.atleast_1d(depth)
     concrete = not _validate.is_traced((grid.size, depth, poisson))
     if concrete:
         # Kernels in float64 NumPy, one depth at a time (memory independent of nz).
-        stacked = jnp.stack([
-            _concrete_depth(_kernel_spectra(grid, z, poisson, loads, np), pressure, shear)
-            for z in np.asarray(depths, dtype=np.float64)])
+        stacked = jnp.stack(
+            [
+                _concrete_depth(
+                    _kernel_spectra(grid, z, poisson, loads, np), pressure, shear
+                )
+                for z in np.asarray(depths, dtype=np.float64)
+            ]
+        )
     else:
         traction_hat = _tractions_hat(pressure, shear)
 

@@ -19,8 +19,14 @@ second-order interpolation otherwise.
 import numpy as np
 
 
-__all__ = ["profiles", "stick_slip_map", "stick_slip_maps", "loads", "load_indentation",
-           "subsurface"]
+__all__ = [
+    "profiles",
+    "stick_slip_map",
+    "stick_slip_maps",
+    "loads",
+    "load_indentation",
+    "subsurface",
+]
 
 # State codes of `stick_slip_state`.
 NO_CONTACT, SLIP, STICK = 0, 1, 2
@@ -39,8 +45,11 @@ def _new_axes(ax, count, figsize):
         fig = Figure(figsize=figsize, layout="constrained")
         axes = fig.subplots(1, count, squeeze=False)[0]
         return fig, list(axes)
-    axes = [ax] if count == 1 and not isinstance(ax, (list, tuple, np.ndarray)) else list(
-        np.ravel(ax))
+    axes = (
+        [ax]
+        if count == 1 and not isinstance(ax, (list, tuple, np.ndarray))
+        else list(np.ravel(ax))
+    )
     if len(axes) != count:
         raise ValueError(f"ax must be {count} matplotlib Axes, got {len(axes)}")
     return axes[0].figure, axes
@@ -57,7 +66,8 @@ def _check_solution(solution):
         if not hasattr(solution, name):
             raise TypeError(
                 f"solution must be a jc.Solution (from jc.solve), got "
-                f"{type(solution).__name__} without a {name!r} field")
+                f"{type(solution).__name__} without a {name!r} field"
+            )
 
 
 def _normalise(normalise):
@@ -66,9 +76,13 @@ def _normalise(normalise):
     try:
         a0, p0 = (float(v) for v in normalise)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"normalise must be a pair (a0, p0), got {normalise!r}") from exc
+        raise ValueError(
+            f"normalise must be a pair (a0, p0), got {normalise!r}"
+        ) from exc
     if not (a0 > 0 and p0 > 0 and np.isfinite(a0) and np.isfinite(p0)):
-        raise ValueError(f"normalise must be two positive numbers (a0, p0), got {normalise!r}")
+        raise ValueError(
+            f"normalise must be two positive numbers (a0, p0), got {normalise!r}"
+        )
     return a0, p0
 
 
@@ -89,7 +103,9 @@ def _indices(solution, times, indices, default_count=4):
             if not -nt <= i < nt:
                 raise ValueError(f"index {i} out of range for {nt} time steps")
         return [i % nt for i in out]
-    return sorted(set(np.linspace(0, nt - 1, min(default_count, nt)).round().astype(int)))
+    return sorted(
+        set(np.linspace(0, nt - 1, min(default_count, nt)).round().astype(int))
+    )
 
 
 def centre_line(field, axis: str = "x"):
@@ -126,8 +142,17 @@ def _extent(grid, scale):
 # ----------------------------------------------------------------------------------
 
 
-def profiles(solution, grid, *, times=None, indices=None, axis: str = "x",
-             normalise=None, ax=None, path=None):
+def profiles(
+    solution,
+    grid,
+    *,
+    times=None,
+    indices=None,
+    axis: str = "x",
+    normalise=None,
+    ax=None,
+    path=None,
+):
     """Pressure and shear traction along a line through the centre, several times.
 
     **Arguments:**
@@ -170,8 +195,9 @@ def profiles(solution, grid, *, times=None, indices=None, axis: str = "x",
     return _finish(fig, path)
 
 
-def stick_slip_map(solution, index: int, grid=None, *, normalise=None, ax=None,
-                   path=None):
+def stick_slip_map(
+    solution, index: int, grid=None, *, normalise=None, ax=None, path=None
+):
     """Map of the stick, slip and no-contact cells at step `index`.
 
     `grid` (optional) gives physical axes (divided by `a0` of `normalise=(a0, p0)`);
@@ -179,10 +205,14 @@ def stick_slip_map(solution, index: int, grid=None, *, normalise=None, ax=None,
     (0 no contact, 1 slip, 2 stick), shown with x horizontal.
     """
     _check_solution(solution)
-    return stick_slip_maps(solution, [index], grid, normalise=normalise, ax=ax, path=path)
+    return stick_slip_maps(
+        solution, [index], grid, normalise=normalise, ax=ax, path=path
+    )
 
 
-def stick_slip_maps(solution, indices, grid=None, *, normalise=None, ax=None, path=None):
+def stick_slip_maps(
+    solution, indices, grid=None, *, normalise=None, ax=None, path=None
+):
     """Stick/slip maps (see `stick_slip_map`) at several steps, one panel each."""
     from matplotlib.colors import BoundaryNorm, ListedColormap
     from matplotlib.patches import Patch
@@ -199,12 +229,21 @@ def stick_slip_maps(solution, indices, grid=None, *, normalise=None, ax=None, pa
     ratio = np.asarray(solution.stick_ratio)
     for a, i in zip(axes, idx):
         # imshow's first image axis is vertical: transpose so that x is horizontal.
-        a.imshow(stick_slip_state(solution, i).T, origin="lower", extent=extent,
-                 cmap=cmap, norm=norm, interpolation="nearest")
+        a.imshow(
+            stick_slip_state(solution, i).T,
+            origin="lower",
+            extent=extent,
+            cmap=cmap,
+            norm=norm,
+            interpolation="nearest",
+        )
         a.set_title(f"t = {t[i]:.4g}, stick ratio {ratio[i]:.2f}", fontsize="small")
         a.set_xlabel(labels[0])
         a.set_ylabel(labels[1])
-    handles = [Patch(color=c, label=s) for c, s in zip(colours, ("no contact", "slip", "stick"))]
+    handles = [
+        Patch(color=c, label=s)
+        for c, s in zip(colours, ("no contact", "slip", "stick"))
+    ]
     axes[-1].legend(handles=handles, fontsize="small", loc="upper right")
     return _finish(fig, path)
 
@@ -266,12 +305,22 @@ def subsurface_field(stress, which: str = "von_mises", axis: str = "x"):
     if field.ndim != 3:
         raise ValueError(
             "stress must hold several depths (call jc.subsurface_stress with a 1-D "
-            f"array of depths), got a field of shape {field.shape}")
+            f"array of depths), got a field of shape {field.shape}"
+        )
     return centre_line(field, axis)
 
 
-def subsurface(grid, stress, which: str = "von_mises", *, axis: str = "x",
-               normalise=None, levels: int = 20, ax=None, path=None):
+def subsurface(
+    grid,
+    stress,
+    which: str = "von_mises",
+    *,
+    axis: str = "x",
+    normalise=None,
+    levels: int = 20,
+    ax=None,
+    path=None,
+):
     """Map of a subsurface stress on the x-z (or y-z) plane through the centre.
 
     **Arguments:**
@@ -295,10 +344,13 @@ def subsurface(grid, stress, which: str = "von_mises", *, axis: str = "x",
     if field.shape != (z.shape[0], coord.shape[0]):
         raise ValueError(
             f"stress of shape {field.shape} (depth x {axis}) does not match the grid "
-            f"({coord.shape[0]} cells along {axis})")
+            f"({coord.shape[0]} cells along {axis})"
+        )
     fig, (a,) = _new_axes(ax, 1, (6.0, 3.8))
     cs = a.contourf(coord, z, field, levels=levels, cmap="viridis")
-    fig.colorbar(cs, ax=a, label=f"{which}" + (" / p0" if normalise is not None else ""))
+    fig.colorbar(
+        cs, ax=a, label=f"{which}" + (" / p0" if normalise is not None else "")
+    )
     if not a.yaxis_inverted():
         a.invert_yaxis()
     unit = " / a0" if normalise is not None else ""

@@ -22,14 +22,26 @@ def small():
     material = jc.Zener(mu_inf=1.93e6, mu_0=1.93e6 / 4, tau=0.01, poisson=0.3)
     times = jnp.linspace(0.0, 0.02, 7)
     load = 0.15 * jnp.asarray([0.3, 0.65, 1.0, 0.8, 0.6, 0.4, 0.2])
-    scene = jc.Scene(grid=grid, indenter=jc.Sphere(radius=10e-3), material=material,
-                     times=times, normal=jc.Force(load),
-                     x=jc.Displacement(jnp.linspace(0.0, 3e-6, 7)), y=None,
-                     friction=0.3, coupling="x", slip="incremental")
+    scene = jc.Scene(
+        grid=grid,
+        indenter=jc.Sphere(radius=10e-3),
+        material=material,
+        times=times,
+        normal=jc.Force(load),
+        x=jc.Displacement(jnp.linspace(0.0, 3e-6, 7)),
+        y=None,
+        friction=0.3,
+        coupling="x",
+        slip="incremental",
+    )
     sol = jc.solve(scene)
     assert bool(np.all(sol.converged))
-    hertz = jc.Hertz(radius=jnp.asarray(10e-3), force=jnp.asarray(0.15),
-                     shear_modulus=jnp.asarray(1.93e6), poisson=jnp.asarray(0.3))
+    hertz = jc.Hertz(
+        radius=jnp.asarray(10e-3),
+        force=jnp.asarray(0.15),
+        shear_modulus=jnp.asarray(1.93e6),
+        poisson=jnp.asarray(0.3),
+    )
     return grid, sol, (float(hertz.contact_radius), float(hertz.peak_pressure))
 
 
@@ -41,14 +53,19 @@ def _assert_png(path):
 def test_profiles(small, tmp_path):
     grid, sol, (a0, p0) = small
     path = tmp_path / "profiles.png"
-    fig = jplot.profiles(sol, grid, times=[0.0, 0.02 / 3, 0.02], normalise=(a0, p0),
-                         path=path)
+    fig = jplot.profiles(
+        sol, grid, times=[0.0, 0.02 / 3, 0.02], normalise=(a0, p0), path=path
+    )
     _assert_png(path)
     axp, axq = fig.axes[:2]
     assert len(axp.lines) == 3 and len(axq.lines) == 3
     # even n: the centre line is the mean of the two central columns
-    p_line = 0.5 * (np.asarray(sol.pressure[2, :, 11]) + np.asarray(sol.pressure[2, :, 12]))
-    q_line = 0.5 * (np.asarray(sol.shear[2, 0, :, 11]) + np.asarray(sol.shear[2, 0, :, 12]))
+    p_line = 0.5 * (
+        np.asarray(sol.pressure[2, :, 11]) + np.asarray(sol.pressure[2, :, 12])
+    )
+    q_line = 0.5 * (
+        np.asarray(sol.shear[2, 0, :, 11]) + np.asarray(sol.shear[2, 0, :, 12])
+    )
     np.testing.assert_allclose(axp.lines[1].get_xdata(), np.asarray(grid.x) / a0)
     np.testing.assert_allclose(axp.lines[1].get_ydata(), p_line / p0, rtol=1e-12)
     np.testing.assert_allclose(axq.lines[1].get_ydata(), q_line / p0, rtol=1e-12)
@@ -69,7 +86,10 @@ def test_stick_slip_maps(small, tmp_path):
     np.testing.assert_array_equal(image == 1, contact & ~stick)
     np.testing.assert_array_equal(image == 0, ~contact)
     # the map's stick fraction is the solution's stick ratio
-    assert abs((image == 2).sum() / max((image > 0).sum(), 1) - float(sol.stick_ratio[3])) < 1e-12
+    assert (
+        abs((image == 2).sum() / max((image > 0).sum(), 1) - float(sol.stick_ratio[3]))
+        < 1e-12
+    )
     path = tmp_path / "maps.png"
     fig = jplot.stick_slip_maps(sol, [1, 3, 5], path=path)
     _assert_png(path)
@@ -82,7 +102,9 @@ def test_loads_and_load_indentation(small, tmp_path):
     fig = jplot.loads(sol, path=path)
     _assert_png(path)
     np.testing.assert_allclose(fig.axes[0].lines[0].get_ydata(), sol.normal_force)
-    np.testing.assert_allclose(fig.axes[1].lines[0].get_ydata(), sol.tangential_force[:, 0])
+    np.testing.assert_allclose(
+        fig.axes[1].lines[0].get_ydata(), sol.tangential_force[:, 0]
+    )
     np.testing.assert_allclose(fig.axes[2].lines[0].get_ydata(), sol.stick_ratio)
     np.testing.assert_allclose(fig.axes[3].lines[0].get_ydata(), sol.approach)
     path = tmp_path / "loop.png"
@@ -101,13 +123,20 @@ def test_subsurface_map(tmp_path):
     grid = jc.Grid(shape=(n, n), size=(3.0, 3.0))
     x, y = grid.coordinates()
     p = jnp.sqrt(jnp.clip(1 - x * x - y * y, 0.0, None))
-    stress = jc.subsurface_stress(grid, p, jnp.stack([0.3 * p, 0 * p]), poisson=0.3,
-                                  depth=jnp.linspace(0.0, 1.5, 7))
+    stress = jc.subsurface_stress(
+        grid,
+        p,
+        jnp.stack([0.3 * p, 0 * p]),
+        poisson=0.3,
+        depth=jnp.linspace(0.0, 1.5, 7),
+    )
     path = tmp_path / "vm.png"
     fig = jplot.subsurface(grid, stress, "von_mises", normalise=(1.0, 1.0), path=path)
     _assert_png(path)
     field = jplot.subsurface_field(stress, "von_mises")
-    expected = 0.5 * (np.asarray(stress.von_mises[:, :, 7]) + np.asarray(stress.von_mises[:, :, 8]))
+    expected = 0.5 * (
+        np.asarray(stress.von_mises[:, :, 7]) + np.asarray(stress.von_mises[:, :, 8])
+    )
     np.testing.assert_allclose(field, expected, rtol=1e-12)
     assert fig.axes[0].yaxis_inverted()
     jplot.subsurface(grid, stress, "sxz", axis="y", path=tmp_path / "sxz.png")

@@ -34,14 +34,22 @@ def _displacement(load, x, y, z, nu):
     f = 1 / (4 * np.pi)
     if load == "p":
         c = (1 - 2 * nu) / (r * (r + z))
-        return np.stack([f * (x * z / r**3 - c * x), f * (y * z / r**3 - c * y),
-                         f * (z * z / r**3 + 2 * (1 - nu) / r)])
+        return np.stack(
+            [
+                f * (x * z / r**3 - c * x),
+                f * (y * z / r**3 - c * y),
+                f * (z * z / r**3 + 2 * (1 - nu) / r),
+            ]
+        )
     if load == "qx":
         d = (1 - 2 * nu) / (r * (r + z) ** 2)
-        return np.stack([
-            f * (1 / r + x * x / r**3 + (1 - 2 * nu) / (r + z) - d * x * x),
-            f * (x * y / r**3 - d * x * y),
-            f * (x * z / r**3 + (1 - 2 * nu) * x / (r * (r + z)))])
+        return np.stack(
+            [
+                f * (1 / r + x * x / r**3 + (1 - 2 * nu) / (r + z) - d * x * x),
+                f * (x * y / r**3 - d * x * y),
+                f * (x * z / r**3 + (1 - 2 * nu) * x / (r * (r + z))),
+            ]
+        )
     ux, uy, uz = _displacement("qx", y, x, z, nu)
     return np.stack([uy, ux, uz])
 
@@ -54,8 +62,9 @@ def _quadrature_stress(load, point, dx, dy, nu, h=1e-4, order=120):
     weight = np.outer(w, w) * dx * dy / 4
 
     def u(p):
-        return np.sum(_displacement(load, p[0] - xi, p[1] - eta, p[2], nu) * weight,
-                      axis=(1, 2))
+        return np.sum(
+            _displacement(load, p[0] - xi, p[1] - eta, p[2], nu) * weight, axis=(1, 2)
+        )
 
     grad = np.zeros((3, 3))
     for k in range(3):
@@ -64,12 +73,27 @@ def _quadrature_stress(load, point, dx, dy, nu, h=1e-4, order=120):
         grad[:, k] = (u(point + e) - u(point - e)) / (2 * h)
     eps = 0.5 * (grad + grad.T)
     s = 2 * nu / (1 - 2 * nu) * np.trace(eps) * np.eye(3) + 2 * eps
-    return {"sxx": s[0, 0], "syy": s[1, 1], "szz": s[2, 2], "sxy": s[0, 1],
-            "sxz": s[0, 2], "syz": s[1, 2]}
+    return {
+        "sxx": s[0, 0],
+        "syy": s[1, 1],
+        "szz": s[2, 2],
+        "sxy": s[0, 1],
+        "sxz": s[0, 2],
+        "syz": s[1, 2],
+    }
 
 
-@pytest.mark.parametrize("point", [(0.0, 0.0, 0.5), (1.0, 0.0, 0.5), (0.3, -1.2, 0.7),
-                                   (-2.5, 1.5, 1.0), (3.0, 2.0, 3.0), (-1.0, -1.0, 0.6)])
+@pytest.mark.parametrize(
+    "point",
+    [
+        (0.0, 0.0, 0.5),
+        (1.0, 0.0, 0.5),
+        (0.3, -1.2, 0.7),
+        (-2.5, 1.5, 1.0),
+        (3.0, 2.0, 3.0),
+        (-1.0, -1.0, 0.6),
+    ],
+)
 def test_cell_coefficients_match_quadrature(point):
     dx, dy = 1.0, 1.3
     x, y, z = point
@@ -87,8 +111,10 @@ def test_holl_uniform_rectangle_under_centre():
     a, b = dx / 2, dy / 2
     for z in (0.1, 0.7, 2.0, 5.0):
         r = np.sqrt(a * a + b * b + z * z)
-        ref = -(2 / np.pi) * (np.arctan(a * b / (z * r))
-                              + a * b * z / r * (1 / (a * a + z * z) + 1 / (b * b + z * z)))
+        ref = -(2 / np.pi) * (
+            np.arctan(a * b / (z * r))
+            + a * b * z / r * (1 / (a * a + z * z) + 1 / (b * b + z * z))
+        )
         c = cell_stress(np.array(0.0), np.array(0.0), z, dx, dy, 0.25, xp=np)
         assert abs(float(c["p"]["szz"]) - ref) < 1e-12
 
@@ -135,18 +161,27 @@ def test_hertz_max_shear_031_at_048a():
 def test_hertz_from_solve_normal():
     """Pressure from the contact solver (not the analytic one): same axis stresses."""
     n = 65
-    hertz = jc.Hertz(radius=jnp.asarray(10.0), force=jnp.asarray(1.0),
-                     shear_modulus=jnp.asarray(1.0), poisson=jnp.asarray(NU))
+    hertz = jc.Hertz(
+        radius=jnp.asarray(10.0),
+        force=jnp.asarray(1.0),
+        shear_modulus=jnp.asarray(1.0),
+        poisson=jnp.asarray(NU),
+    )
     a, p0 = float(hertz.contact_radius), float(hertz.peak_pressure)
     grid = jc.Grid(shape=(n, n), size=(3 * a, 3 * a))
-    sol = jc.solve_normal(grid, jc.Sphere(radius=10.0),
-                          jc.Elastic(shear_modulus=1.0, poisson=NU), force=1.0)
+    sol = jc.solve_normal(
+        grid,
+        jc.Sphere(radius=10.0),
+        jc.Elastic(shear_modulus=1.0, poisson=NU),
+        force=1.0,
+    )
     assert bool(sol.converged)
     z = np.array([0.25, 0.5, 1.0]) * a
     s = jc.subsurface_stress(grid, sol.pressure, poisson=NU, depth=z)
     c = n // 2
-    np.testing.assert_allclose(np.asarray(s.szz[:, c, c]) / p0, -1 / (1 + (z / a) ** 2),
-                               atol=1e-2)
+    np.testing.assert_allclose(
+        np.asarray(s.szz[:, c, c]) / p0, -1 / (1 + (z / a) ** 2), atol=1e-2
+    )
 
 
 # -- sliding Hertz contact -------------------------------------------------------------
@@ -174,8 +209,9 @@ def test_sliding_hertz_surface_and_axis():
     np.testing.assert_allclose(np.asarray(s.sxx[0, inside, c]), sxx_ref, atol=6e-3)
     np.testing.assert_allclose(np.asarray(s.syy[0, inside, c]), syy_ref, atol=6e-3)
     for k, z in enumerate(depths[1:], start=1):
-        integral = quad(lambda q: np.sqrt(1 - q * q) * q**3 / (q * q + z * z) ** 2.5,
-                        0.0, 1.0)[0]
+        integral = quad(
+            lambda q: np.sqrt(1 - q * q) * q**3 / (q * q + z * z) ** 2.5, 0.0, 1.0
+        )[0]
         ref = -1.5 * mu * z * integral
         assert abs(float(s.sxz[k, c, c]) - ref) < 2e-4
     # friction breaks the symmetry (Hamilton 1983): the largest surface tension is at
@@ -209,14 +245,16 @@ def test_uniform_pressure_large_patch():
     p = jnp.full((n, n), pressure)
     s = jc.subsurface_stress(grid, p, poisson=NU, depth=jnp.array([1e-3, 0.02]))
     c = n // 2
-    centre = np.asarray(s.szz[:, c - 1:c + 1, c - 1:c + 1]).mean(axis=(1, 2))
+    centre = np.asarray(s.szz[:, c - 1 : c + 1, c - 1 : c + 1]).mean(axis=(1, 2))
     np.testing.assert_allclose(centre, -pressure, rtol=2e-3)
     # a uniform disc of radius R (Johnson 3.4): s_z = -p (1 - z^3 / (R^2 + z^2)^1.5);
     # the square of side 1 lies between the discs R = 0.5 and R = 0.5 sqrt(2)
     z = 0.4
     s = jc.subsurface_stress(grid, p, poisson=NU, depth=z)
-    val = float(np.asarray(s.szz[c - 1:c + 1, c - 1:c + 1]).mean())
-    bounds = [-pressure * (1 - z**3 / (r * r + z * z) ** 1.5) for r in (0.5, 0.5 * 2**0.5)]
+    val = float(np.asarray(s.szz[c - 1 : c + 1, c - 1 : c + 1]).mean())
+    bounds = [
+        -pressure * (1 - z**3 / (r * r + z * z) ** 1.5) for r in (0.5, 0.5 * 2**0.5)
+    ]
     assert bounds[1] < val < bounds[0]
 
 
@@ -225,10 +263,13 @@ def test_traced_path_and_depth_map_match_concrete():
     grid, p, shear = _hertz_grid(n, mu=0.3)
     z = jnp.array([0.0, 0.2, 0.6])
     ref = jc.subsurface_stress(grid, p, shear, poisson=NU, depth=z)
-    traced = jax.jit(lambda g, p, q, z: jc.subsurface_stress(g, p, q, poisson=NU, depth=z))(
-        grid, p, shear, z)
+    traced = jax.jit(
+        lambda g, p, q, z: jc.subsurface_stress(g, p, q, poisson=NU, depth=z)
+    )(grid, p, shear, z)
     for name in ("sxx", "syy", "szz", "sxy", "sxz", "syz"):
-        np.testing.assert_allclose(getattr(traced, name), getattr(ref, name), atol=1e-12)
+        np.testing.assert_allclose(
+            getattr(traced, name), getattr(ref, name), atol=1e-12
+        )
     one = jc.subsurface_stress(grid, p, shear, poisson=NU, depth=0.2)
     assert one.sxx.shape == (n, n)
     np.testing.assert_allclose(one.von_mises, ref.von_mises[1], atol=1e-12)
@@ -247,10 +288,14 @@ def test_gradients_match_finite_differences():
     g_nu, g_z = jax.grad(f, argnums=(0, 1))(0.3, 0.4)
     # vmap over scalar depths = one call with an array of depths
     z = jnp.array([0.0, 0.4])
-    single = jax.vmap(lambda z: jc.subsurface_stress(grid, p, shear, poisson=0.3,
-                                                     depth=z).sxx)(z)
+    single = jax.vmap(
+        lambda z: jc.subsurface_stress(grid, p, shear, poisson=0.3, depth=z).sxx
+    )(z)
     np.testing.assert_allclose(
-        single, jc.subsurface_stress(grid, p, shear, poisson=0.3, depth=z).sxx, atol=1e-12)
+        single,
+        jc.subsurface_stress(grid, p, shear, poisson=0.3, depth=z).sxx,
+        atol=1e-12,
+    )
     h = 1e-5
     fd_nu = (f(0.3 + h, 0.4) - f(0.3 - h, 0.4)) / (2 * h)
     fd_z = (f(0.3, 0.4 + h) - f(0.3, 0.4 - h)) / (2 * h)
@@ -262,15 +307,23 @@ def test_incompressible_and_float32():
     n = 33
     grid, p, shear = _hertz_grid(n, mu=0.2)
     s64 = jc.subsurface_stress(grid, p, shear, poisson=0.5, depth=jnp.array([0.3, 0.8]))
-    assert all(np.isfinite(np.asarray(getattr(s64, c))).all()
-               for c in ("sxx", "syy", "szz", "sxy", "sxz", "syz"))
+    assert all(
+        np.isfinite(np.asarray(getattr(s64, c))).all()
+        for c in ("sxx", "syy", "szz", "sxy", "sxz", "syz")
+    )
     grid32 = jc.Grid(shape=(n, n), size=jnp.asarray([3.0, 3.0], dtype=jnp.float32))
-    s32 = jc.subsurface_stress(grid32, p.astype(jnp.float32), shear.astype(jnp.float32),
-                               poisson=0.5, depth=jnp.array([0.3, 0.8], dtype=jnp.float32))
+    s32 = jc.subsurface_stress(
+        grid32,
+        p.astype(jnp.float32),
+        shear.astype(jnp.float32),
+        poisson=0.5,
+        depth=jnp.array([0.3, 0.8], dtype=jnp.float32),
+    )
     assert s32.sxx.dtype == jnp.float32
     for name in ("sxx", "syy", "szz", "sxy", "sxz", "syz"):
-        np.testing.assert_allclose(np.asarray(getattr(s32, name)),
-                                   np.asarray(getattr(s64, name)), atol=2e-5)
+        np.testing.assert_allclose(
+            np.asarray(getattr(s32, name)), np.asarray(getattr(s64, name)), atol=2e-5
+        )
 
 
 def test_bad_input():
@@ -284,7 +337,9 @@ def test_bad_input():
     with pytest.raises(ValueError, match="poisson"):
         jc.subsurface_stress(grid, p, poisson=0.7, depth=0.1)
     with pytest.raises(ValueError, match="periodic"):
-        jc.subsurface_stress(jc.Grid((8, 8), 1.0, periodic=True), p, poisson=NU, depth=0.1)
+        jc.subsurface_stress(
+            jc.Grid((8, 8), 1.0, periodic=True), p, poisson=NU, depth=0.1
+        )
     with pytest.raises(TypeError, match="grid"):
         jc.subsurface_stress("grid", p, poisson=NU, depth=0.1)
     with pytest.raises(ValueError, match="depth"):
