@@ -955,6 +955,12 @@ def parse_args(argv=None):
         help="JSON path (default benchmarks/results/run_{quick,full}.json)",
     )
     ap.add_argument("--no-plot", action="store_true", help="write no PNG")
+    ap.add_argument(
+        "--merge",
+        action="store_true",
+        help="keep the parts not run now from the existing JSON at the output path "
+        "(their machine block and date are kept beside them under 'merged')",
+    )
     return ap.parse_args(argv)
 
 
@@ -1106,6 +1112,16 @@ def main(argv=None) -> int:
                         run_worker(spec, timeout, env_extra=env, log=log)
                     )
     out["machine"]["load_average_after"] = _loadavg()
+    if args.merge and out_path.exists():
+        prev = json.loads(out_path.read_text())
+        kept = [k for k in ("hertz", "cattaneo", "leeradok", "peers")
+                if k in prev and k not in parts]
+        for k in kept:
+            out[k] = prev[k]
+        out["merged"] = {"parts": kept, "date": prev.get("date"),
+                         "command": prev.get("command"), "machine": prev.get("machine"),
+                         "library": prev.get("library"),
+                         "total_time_s": prev.get("total_time_s")}
     out["summary"] = summarise(out)
     out["total_time_s"] = time.perf_counter() - t0
     out_path.parent.mkdir(parents=True, exist_ok=True)
