@@ -56,9 +56,12 @@ def _dc_spectra(grid: Grid, names):
     """
     xp = np if _concrete(grid) else jnp
     nx, ny = grid.shape
-    dx, dy = grid.spacing
     if xp is np:
-        dx, dy = float(dx), float(dy)
+        # From the concrete size in NumPy: inside a jit trace even operations on
+        # constants are staged, so `grid.spacing` would be a tracer there.
+        dx, dy = (float(v) for v in np.asarray(grid.size, np.float64) / np.array([nx, ny]))
+    else:
+        dx, dy = grid.spacing
     ox, mx = _wraparound_offsets(nx, dx, xp)
     oy, my = _wraparound_offsets(ny, dy, xp)
     x, y = xp.meshgrid(ox, oy, indexing="ij")
@@ -76,9 +79,10 @@ def _dc_spectra(grid: Grid, names):
 
 def _alias_sum(grid: Grid, names, aliases: int, xp):
     nx, ny = grid.shape
-    dx, dy = grid.spacing
     if xp is np:
-        dx, dy = float(dx), float(dy)
+        dx, dy = (float(v) for v in np.asarray(grid.size, np.float64) / np.array([nx, ny]))
+    else:
+        dx, dy = grid.spacing
     kx0 = 2 * np.pi * xp.fft.fftfreq(nx) / dx
     ky0 = 2 * np.pi * xp.fft.rfftfreq(ny) / dy
     a = xp.arange(-aliases, aliases + 1)
