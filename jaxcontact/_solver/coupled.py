@@ -335,10 +335,11 @@ def _load_by_displacement(operator, config, compliance, poisson, friction, h0, h
         force = area * jnp.sum(r.shear[d])
         scale = area * friction * jnp.sum(r.pressure)  # mu W
         # Load residual as the tangential solver defines it (relative to mu W).
-        err = jnp.abs(force - target_force) / jnp.where(scale > 0, scale, 1)
-        # Only a converged evaluation can be the answer.
-        err = jnp.where(r.converged & jnp.isfinite(err), err, jnp.inf)
-        return r, force - target_force, err
+        raw = jnp.abs(force - target_force) / jnp.where(scale > 0, scale, 1)
+        raw = jnp.where(jnp.isfinite(raw), raw, jnp.inf)
+        # Only a converged evaluation can be the answer (rank: load error, or inf).
+        err = jnp.where(r.converged, raw, jnp.inf)
+        return r, force - target_force, err, raw
 
     # ---- Bracket: from the failed step's delta_d, grow geometrically ------------------
     # First step: the force error over the stiffness of a stuck contact of the
@@ -346,7 +347,7 @@ def _load_by_displacement(operator, config, compliance, poisson, friction, h0, h
     # (any positive scale works: it only sets where the geometric growth starts).
     d0 = failed.delta_t[d]
     d0 = jnp.where(jnp.isfinite(d0), d0, 0.0)
-    r0, f0, e0 = evaluate(d0, failed)
+    r0, f0, e0, raw0 = evaluate(d0, failed)
     n_contact = jnp.maximum(jnp.sum(r0.pressure > 0), 1)
     size = jnp.sqrt(n_contact * area)
     mu_w = area * friction * jnp.sum(r0.pressure)
@@ -354,7 +355,8 @@ def _load_by_displacement(operator, config, compliance, poisson, friction, h0, h
     step0 = jnp.where(jnp.isfinite(step0) & (step0 > 0), step0, compliance / size)
     # b: the latest point; a: the other end of the bracket once there is one.
     init = dict(
-        a=d0, fa=f0, b=d0, fb=f0, last=r0, best=r0, best_err=e0, n=jnp.array(1),
+        a=d0, fa=f0, b=d0, fb=f0, last=r0, best=r0, best_err=e0, best_raw=raw0,
+        n=jnp.array(1),
         bracketed=f0 == 0, step=step0, it=r0.iterations, rounds=r0.rounds,
     )
 
@@ -374,8 +376,12 @@ def _load_by_displacement(operator, config, compliance, poisson, friction, h0, h
         margin = 0.05 * (hi - lo)
         inside = ok & (secant > lo + margin) & (secant < hi - margin)
         x = jnp.where(s["bracketed"], jnp.where(inside, secant, 0.5 * (a + b)), grow)
-        r, fx, ex = evaluate(x, s["last"])
-        better = ex < s["best_err"]
+        r, fx, ex, rawx = evaluate(x, s["last"])
+        # Better: a smaller converged load error, or, while nothing has converged, a
+        # smaller overall residual (so that a failure reports its best attempt).
+        better = (ex < s["best_err"]) | (
+            jnp.isinf(s["best_err"]) & jnp.isinf(ex)
+            & (jnp.maximum(r.residual, rawx) < jnp.maximum(s["best"].residual, s["best_raw"])))
         best = jax.tree_util.tree_map(lambda n, o: jnp.where(better, n, o), r, s["best"])
         flipped = jnp.sign(fx) != jnp.sign(fb)
         # Bracketed: a sign change moves a to the old b; otherwise a is kept and its
@@ -385,7 +391,8 @@ def _load_by_displacement(operator, config, compliance, poisson, friction, h0, h
         fa_new = jnp.where(flipped, fb, jnp.where(s["bracketed"], 0.5 * fa, fa))
         return dict(
             a=a_new, fa=fa_new, b=x, fb=fx, last=r, best=best,
-            best_err=jnp.minimum(ex, s["best_err"]), n=s["n"] + 1,
+            best_err=jnp.minimum(ex, s["best_err"]),
+            best_raw=jnp.where(better, rawx, s["best_raw"]), n=s["n"] + 1,
             bracketed=s["bracketed"] | flipped, step=2 * s["step"],
             it=s["it"] + r.iterations, rounds=s["rounds"] + r.rounds,
         )
@@ -394,6 +401,6 @@ def _load_by_displacement(operator, config, compliance, poisson, friction, h0, h
     best = s["best"]
     return best._replace(
         iterations=s["it"], rounds=s["rounds"],
-        residual=jnp.maximum(best.residual, s["best_err"]),
+        residual=jnp.maximum(best.residual, s["best_raw"]),
         converged=best.converged & (s["best_err"] <= tol),
     )

@@ -84,6 +84,12 @@ _DEBUG = False
 _UPD_RESTART = False  # drop the previous step at bound updates
 _ZIGZAG = True  # cells bound to their disc by the last step are not released at once
 _SET_RESTART = 1  # 1: drop the previous step when an active set changes
+# Give up (converged=False, so that `contact_step` falls back to the rounds) when the
+# best residual has not halved for this many iterations: the lagged-bound iteration
+# can cycle on the stick set (seen under displacement control past gross sliding with
+# the total slip law, where the load fix of a load-controlled direction shifts every
+# slip cell back inside its disc). Converging runs halve it every few iterations.
+_STALL = 150
 
 
 def _safe_div(a, b):
@@ -385,6 +391,7 @@ def joint_solve(
     init = dict(
         x=x_init, u=u_init, bound=bound_init, sliding=sliding_init, scales=scales_init,
         ev=ev_init, res_ref=ev_init["residual"],
+        best=ev_init["residual"], since=jnp.array(0),
         c=zeros_x, pending=jnp.array(False),  # outside change not yet in u
         fresh=jnp.zeros((nx, ny), bool),
         s=zeros_x, s_h=zeros_h, ks_h=zeros_h, have_prev=jnp.array(False),
@@ -395,7 +402,7 @@ def joint_solve(
 
     def cond(s):
         done = (s["ev"]["residual"] <= rtol) & s["certified"]
-        return ~done & (s["it"] < config.max_steps)
+        return ~done & (s["it"] < config.max_steps) & (s["since"] < _STALL)
 
     def body(s):
         x, u, ev, bound, sliding = s["x"], s["u"], s["ev"], s["bound"], s["sliding"]
@@ -557,6 +564,8 @@ def joint_solve(
             fresh=full & ~ev_new["stick"],
             s=step, s_h=step_h, ks_h=kstep_h, have_prev=~restart,
             it=it, certified=update, updates=s["updates"] + update,
+            best=jnp.minimum(s["best"], ev_new["residual"]),
+            since=jnp.where(ev_new["residual"] <= 0.5 * s["best"], 0, s["since"] + 1),
             applications=applications + 1.5 * update,
             counts=s["counts"] + jnp.stack(
                 [pending_new, periodic, update, restart]).astype(jnp.int32),

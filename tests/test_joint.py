@@ -1,0 +1,279 @@
+r"""The joint (p, q) solver of a coupled step against the normal/tangential rounds, and
+the safeguards of `contact_step` (fallbacks, load control by a root search).
+
+The rounds (`coupled._rounds_step`) are validated on their own in test_partial_slip.py
+(Cattaneo-Mindlin, Spence, pointwise Coulomb, the dense reference). The joint solver
+(`joint.joint_step`, called here WITHOUT the fallbacks of `contact_step`, so that a
+joint failure shows) solves the same discrete problem along a different iteration
+path; both stop at rtol = 1e-8 on L2 norms of the contact violations, so pointwise they
+agree to about `2 rtol n` of max p (see `same` in test_partial_slip.py), and their
+stick sets agree up to cells whose |q| is within that tolerance of mu p.
+
+Step-level runs use one jitted `lax.scan` stepper per static configuration, shared
+between cases (loads, friction, the slip law are dynamic), on small grids (n = 32):
+compilation dominates, so the cases that need their own programs are marked slow.
+
+The issue's load-control failure (Zener, total slip law, coupled, F_x load-controlled:
+the rounds ran out at steps 13-20) is checked through `jc.solve` with both methods: the
+joint solver converges on it directly; the rounds are rescued by the load root search
+of `contact_step` (displacement-controlled evaluations).
+
+Parameters: rigid sphere R = 10 mm, G = 1 MPa, nu = 0.3, W = 0.15 N, mu = 0.3, grid of
+side 4a (a: Hertz radius).
+"""
+
+import functools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxcontact as jc
+from jaxcontact._solver.coupled import StepConfig, _rounds_step, contact_step
+from jaxcontact._solver.joint import joint_step
+from jaxcontact._solver.normal import hertzian_guess
+
+
+R, W, G, NU, MU = 10e-3, 0.15, 1e6, 0.3, 0.3
+RTOL = 1e-8
+N = 32
+
+
+def same(n):
+    """Agreement of two solutions of one discrete problem (relative to max p)."""
+    return 2 * RTOL * n
+
+
+def hertz_radius():
+    return float(jc.Hertz(R, W, G, NU).contact_radius)
+
+
+def slip_distance():
+    """Mindlin's rigid tangential displacement at gross sliding (one elastic body)."""
+    return 3 * MU * W * (2 - NU) / (16 * G * hertz_radius())
+
+
+@functools.cache
+def stepper(method, coupling, x_force, dtype=jnp.float64, n=N, rtol=RTOL, max_steps=2000):
+    """A jitted scan over `(W_k, T_k)` with one step solver, as `_solve.py` steps.
+
+    `slip_memory` (dynamic) is 1 for the incremental law, 0 for the total law.
+    """
+    nd = 2 if coupling == "full" else 1
+    grid = jc.Grid((n, n), jnp.asarray(4 * hertz_radius(), dtype))
+    op = jc.HalfSpace(grid, coupling, tangential_y=nd == 2)
+    fc = (x_force, True)[:nd]
+    cfg = StepConfig(nd=nd, coupled=True, normal_force_control=True,
+                     tangential_force_control=fc, rtol=rtol, max_steps=max_steps,
+                     max_rounds=100, resync_every=25, method="joint")
+    solver = {"joint": joint_step, "rounds": _rounds_step, "step": contact_step}[method]
+    h0 = jc.Sphere(R).gap(grid).astype(dtype)
+    history = jnp.zeros((3, n, n), dtype)
+
+    def step(carry, inputs):
+        p_prev, q_prev, s_prev = carry
+        w, t, mu, memory = inputs
+        guess = jnp.where(jnp.sum(p_prev) > 0, p_prev, hertzian_guess(
+            h0, w, jnp.asarray(2 * G / (1 - NU), dtype), grid.cell_area))
+        res = solver(op, cfg, jnp.asarray(1 / G, dtype), jnp.asarray(NU, dtype), mu, h0,
+                     history, w, t, memory * s_prev, p_prev, q_prev, normal_guess=guess)
+        return (res.pressure, res.shear, res.slip), res
+
+    @jax.jit
+    def run(w, t, mu, memory):
+        z = jnp.zeros((n, n), dtype)
+        zq = jnp.zeros((nd, n, n), dtype)
+        k = w.shape[0]
+        inputs = (w.astype(dtype), t[:, :nd].astype(dtype), jnp.full(k, mu, dtype),
+                  jnp.full(k, memory, dtype))
+        return jax.lax.scan(step, (z, zq, zq), inputs)[1]
+
+    return run
+
+
+STEPS = 3
+CASES = {
+    # name: (coupling, x load-controlled, W_k, T_k (x, y), mu)
+    "normal ramp": ("full", True, W * np.arange(1, STEPS + 1) / STEPS,
+                    np.zeros((STEPS, 2)), MU),
+    "CM F_x ramp": ("full", True, np.full(STEPS, W),
+                    np.stack([[0.0, 0.3, 0.6][:STEPS], np.zeros(STEPS)], -1) * MU * W, MU),
+    "CM F_x, F_y": ("full", True, np.full(STEPS, W),
+                    np.array([[0.3, 0.2], [0.5, -0.3], [0.2, 0.6]]) * MU * W, 0.5),
+    "delta_x ramp to sliding": ("full", False, np.full(STEPS, W),
+                                np.stack([np.array([0.4, 0.9, 1.5]) * slip_distance(),
+                                          np.zeros(STEPS)], -1), MU),
+    "semi-coupled x, CM": ("x", True, np.full(STEPS, W),
+                           np.stack([[0.2, 0.5, 0.8], np.zeros(STEPS)], -1) * MU * W, MU),
+}
+
+
+@functools.cache
+def solved(method, name, memory):
+    coupling, x_force, w, t, mu = CASES[name]
+    run = stepper(method, coupling, x_force)
+    return jax.tree_util.tree_map(np.asarray, run(jnp.asarray(w), jnp.asarray(t), mu,
+                                                  float(memory)))
+
+
+# The joint solver alone cycles on the stick set at the last step of this case (W
+# fixed, delta_x = 1.5 x the sliding distance, total slip law: the load fix of the
+# load-controlled y direction shifts every slip cell back inside its disc); it gives up
+# and `contact_step` falls back to the rounds.
+JOINT_FAILS = {("delta_x ramp to sliding", "total")}
+
+
+# Cases in the default run: one compiled configuration (coupling "full", both tangential
+# directions load-controlled). The displacement-controlled ramp and the semi-coupled
+# case each compile their own programs (joint, rounds, and for the fallback case
+# `contact_step`): slow.
+_SLOW_CASES = {"delta_x ramp to sliding", "semi-coupled x, CM"}
+
+
+@pytest.mark.parametrize("law", ["incremental", "total"])
+@pytest.mark.parametrize("name", [
+    pytest.param(c, marks=pytest.mark.slow) if c in _SLOW_CASES else c for c in CASES])
+def test_joint_matches_rounds(name, law):
+    """Same (p, q, stick) as the rounds, at every step: the joint solver alone
+    (without fallback), or, in the known failing case, `contact_step` (joint, then
+    the fallback) after the joint solver has flagged its failure honestly."""
+    memory = law == "incremental"
+    joint, rounds = solved("joint", name, memory), solved("rounds", name, memory)
+    assert np.all(rounds.converged), rounds.residual
+    if (name, law) in JOINT_FAILS:
+        assert not np.all(joint.converged)
+        assert np.all(joint.residual[~joint.converged] > RTOL)
+        joint = solved("step", name, memory)
+    assert np.all(joint.converged), (joint.residual, joint.iterations)
+    assert np.all(joint.residual <= RTOL)
+    mu = CASES[name][4]
+    p_max = rounds.pressure.max(axis=(1, 2))
+    dp = np.abs(joint.pressure - rounds.pressure).max(axis=(1, 2)) / p_max
+    dq = np.abs(joint.shear - rounds.shear).max(axis=(1, 2, 3)) / (mu * p_max)
+    assert dp.max() <= same(N), dp
+    assert dq.max() <= same(N), dq
+    np.testing.assert_allclose(joint.approach, rounds.approach, rtol=same(N))
+    # delta_t: a multiplier (mean displacement over stick cells), accurate to the
+    # solution tolerance of the displacement scale (Mindlin's sliding distance).
+    scale = max(np.abs(rounds.delta_t).max(), slip_distance())
+    np.testing.assert_allclose(joint.delta_t, rounds.delta_t, rtol=0, atol=same(N) * scale)
+    # Stick sets: equal except cells on the stick/slip boundary, whose |q| / mu p is
+    # within the solution tolerance of 1.
+    differ = joint.stick != rounds.stick
+    mag = np.sqrt(np.sum(rounds.shear**2, axis=1))
+    ratio = np.where(rounds.pressure > 0, mag / np.maximum(mu * rounds.pressure, 1e-300), 0)
+    assert np.all(np.abs(ratio[differ] - 1) <= 1e-4), ratio[differ]
+    assert differ.sum(axis=(1, 2)).max() <= 4
+    assert np.array_equal(joint.sliding, rounds.sliding)
+
+
+@pytest.mark.slow
+def test_sliding_case_reaches_gross_sliding():
+    """The displacement ramp ends past Mindlin's sliding distance: no stick cell, and
+    |q| = mu p on every contact cell (both solvers)."""
+    for method in ("joint", "rounds"):
+        sol = solved(method, "delta_x ramp to sliding", True)
+        assert sol.sliding[-1] and not sol.sliding[0]
+        p, q = sol.pressure[-1], sol.shear[-1]
+        mag = np.sqrt(np.sum(q**2, axis=0))
+        assert np.max(np.abs(mag - MU * p)) <= same(N) * MU * p.max()
+
+
+def test_joint_is_cheaper_than_rounds():
+    """The point of the joint solver: fewer iterations for a coupled step (each joint
+    iteration costs about one coupled operator application; each round iteration at
+    least a normal or a tangential one)."""
+    joint, rounds = solved("joint", "CM F_x ramp", True), solved("rounds", "CM F_x ramp", True)
+    assert joint.iterations.sum() * 2 < rounds.iterations.sum()
+
+
+@pytest.mark.slow
+def test_contact_step_never_claims_a_wrong_answer():
+    """With an iteration bound far too small for any method, `contact_step` (joint,
+    then the rounds, then the load root search) reports converged=False with a finite
+    residual above rtol, never a converged flag on an unconverged answer."""
+    run = stepper("step", "full", True, max_steps=3)
+    w = jnp.asarray(CASES["CM F_x ramp"][2][-1:])
+    t = jnp.asarray(CASES["CM F_x ramp"][3][-1:])
+    sol = jax.tree_util.tree_map(np.asarray, run(w, t, MU, 1.0))
+    assert not sol.converged[0]
+    assert np.isfinite(sol.residual[0]) and sol.residual[0] > RTOL
+    assert np.all(np.isfinite(sol.pressure)) and np.all(np.isfinite(sol.shear))
+
+
+def test_joint_float32():
+    """float32: converges at rtol 1e-5 and matches float64 to 1e-3 of max p."""
+    name = "CM F_x ramp"
+    coupling, x_force, w, t, mu = CASES[name]
+    run = stepper("joint", coupling, x_force, dtype=jnp.float32, rtol=1e-5)
+    sol = jax.tree_util.tree_map(np.asarray, run(jnp.asarray(w, jnp.float32),
+                                                 jnp.asarray(t, jnp.float32), mu, 1.0))
+    ref = solved("joint", name, True)
+    assert sol.pressure.dtype == np.float32
+    assert np.all(sol.converged), sol.residual
+    p_max = ref.pressure.max()
+    assert np.abs(sol.pressure - ref.pressure).max() <= 1e-3 * p_max
+    assert np.abs(sol.shear - ref.shear).max() <= 1e-3 * mu * p_max
+
+
+# ---- Viscoelastic scene through jc.solve; load control that never fails -----------------
+
+def zener_scene(slip="total", n=48, steps=21, x=jc.Force(0.0225)):
+    """The issue's scene: Zener (paper Eqs. 29-30), coupled, total slip law."""
+    mat = jc.Zener(mu_inf=1.93e6, mu_0=1.93e6 / 4, tau=0.01, poisson=0.3)
+    a = float(jc.Hertz(R, 0.15, 1.93e6 / 4, 0.3).contact_radius)
+    grid = jc.Grid((n, n), 4 * a)
+    return jc.Scene(grid, jc.Sphere(R), mat, times=jnp.linspace(0.0, 0.02, steps),
+                    normal=jc.Force(0.15), x=x, friction=0.3, coupling="full", slip=slip)
+
+
+@functools.cache
+def zener(method):
+    return jax.tree_util.tree_map(np.asarray, jc.solve(zener_scene(), method=method))
+
+
+@pytest.mark.parametrize("method", ["joint", pytest.param("rounds", marks=pytest.mark.slow)])
+def test_zener_total_slip_load_control_converges(method):
+    """The issue's failing scene (the rounds ran out at steps 13-20) converges at every
+    step with both methods, meets both loads, and keeps |q| <= mu p."""
+    sol = zener(method)
+    assert np.all(sol.converged), (sol.converged, sol.residual)
+    mu_w = 0.3 * 0.15
+    assert np.max(np.abs(sol.tangential_force[:, 0] - 0.0225)) <= RTOL * mu_w
+    assert np.max(np.abs(sol.tangential_force[:, 1])) <= RTOL * mu_w
+    np.testing.assert_allclose(sol.normal_force, 0.15, rtol=1e-12)
+    mag = np.sqrt(np.sum(sol.shear**2, axis=1))
+    assert np.all(mag <= 0.3 * sol.pressure * (1 + 1e-9) + 1e-12 * sol.pressure.max())
+    assert np.all(sol.stick_ratio > 0) and not np.any(sol.sliding)
+
+
+@pytest.mark.slow
+def test_zener_joint_matches_rounds():
+    """Both methods give the same solution of the viscoelastic scene at every step."""
+    joint, rounds = zener("joint"), zener("rounds")
+    p_max = rounds.pressure.max(axis=(1, 2))
+    n = rounds.pressure.shape[-1]
+    assert (np.abs(joint.pressure - rounds.pressure).max(axis=(1, 2)) / p_max).max() <= same(n)
+    assert (np.abs(joint.shear - rounds.shear).max(axis=(1, 2, 3))
+            / (0.3 * p_max)).max() <= same(n)
+    np.testing.assert_allclose(joint.tangential_displacement[:, 0],
+                               rounds.tangential_displacement[:, 0], rtol=same(n))
+
+
+@pytest.mark.slow
+def test_zener_found_displacement_reproduces_the_load():
+    """Independent check of the load-controlled answer: the same scene driven by the
+    rigid tangential displacement it returned (displacement control) carries the
+    target force 0.0225 N at every step."""
+    sol = zener("joint")
+    driven = jc.solve(zener_scene(x=jc.Displacement(jnp.asarray(
+        sol.tangential_displacement[:, 0]))))
+    assert np.all(np.asarray(driven.converged))
+    force = np.asarray(driven.tangential_force[:, 0])
+    assert np.max(np.abs(force - 0.0225)) <= 1e-5 * 0.0225
+
+
+def test_solve_rejects_unknown_method():
+    with pytest.raises(ValueError, match="method"):
+        jc.solve(zener_scene(n=8, steps=2), method="newton")
