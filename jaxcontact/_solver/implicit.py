@@ -178,7 +178,7 @@ def _make_attach(config: StepConfig, rtol: float, maxiter: int):
             return residual_vjp(lam)[0]
 
         lam, _ = gmres(transpose_jacobian, x_bar, tol=rtol, atol=0.0, restart=40,
-                       maxiter=maxiter, solve_method="batched")
+                       maxiter=maxiter, solve_method="incremental")
         theta_bar = residual_vjp(lam)[1]
         theta_bar = jax.tree.map(jnp.negative, theta_bar)
         if theta_extra is not None:

@@ -1,0 +1,141 @@
+"""Cost of one reverse-mode gradient through a whole history, against the forward solve.
+
+Scenes (float64, rtol 1e-8, rigid sphere R = 10 mm, W = 0.15 N ramped, Zener
+mu_inf = 1.93 MPa, mu_inf / mu_0 = 4, tau = 0.01 s, nu = 0.3, domain 4 a):
+
+- `normal`: frictionless creep indentation, n^2 grid x nt steps;
+- `slip`: the same with mu = 0.3 and a tangential displacement ramped over the
+  history (coupling "none": partial slip in x).
+
+For each: forward time (`jc.solve`, jitted, after compilation, best of repeats), gradient
+time (`jax.grad` of a scalar of the solution w.r.t. (mu_0, tau, poisson, W), jitted,
+after compilation), their ratio, and XLA's compiled memory analysis of both programs
+(temporary + argument + output bytes: the peak device buffer footprint XLA plans).
+
+Usage::
+
+    python benchmarks/gradients.py                 # 128^2 x 100 steps (the issue's scene)
+    python benchmarks/gradients.py --n 64 --nt 40
+
+Results go to `benchmarks/results/gradients.json`.
+"""
+
+import argparse
+import json
+import os
+import platform
+import time
+from pathlib import Path
+
+import jax
+
+
+jax.config.update("jax_enable_x64", True)
+import jax.numpy as jnp  # noqa: E402
+
+import jaxcontact as jc  # noqa: E402
+
+
+R, W, G, NU = 10e-3, 0.15, 1.93e6, 0.3
+
+
+def make_loss(n, nt, kind):
+    a = float(jc.Hertz(R, W, G, NU).contact_radius)
+    grid = jc.Grid((n, n), 4 * a)
+    times = jnp.linspace(0.0, 0.04, nt)
+    ramp = jnp.minimum(1.0, 0.2 + times / 0.02)
+
+    def scene_of(params):
+        mu_0, tau, poisson, load = params
+        material = jc.Zener(mu_inf=G, mu_0=mu_0, tau=tau, poisson=poisson)
+        extra = {}
+        if kind == "slip":
+            extra = dict(x=jc.Displacement(1.5e-6 * times / times[-1]), friction=0.3)
+        return jc.Scene(grid, jc.Sphere(R), material, times, jc.Force(load * ramp), **extra)
+
+    def forward(params):
+        return jc.solve(scene_of(params))
+
+    def loss(params):
+        sol = forward(params)
+        return 1e6 * jnp.sum(sol.approach) + jnp.sum(sol.tangential_force)
+
+    return forward, loss
+
+
+def _best(fn, arg, repeats):
+    best = float("inf")
+    for _ in range(repeats):
+        start = time.perf_counter()
+        jax.block_until_ready(fn(arg))
+        best = min(best, time.perf_counter() - start)
+    return best
+
+
+def _memory(fn, arg):
+    try:
+        analysis = jax.jit(fn).lower(arg).compile().memory_analysis()
+        return {
+            "temp_bytes": int(analysis.temp_size_in_bytes),
+            "argument_bytes": int(analysis.argument_size_in_bytes),
+            "output_bytes": int(analysis.output_size_in_bytes),
+        }
+    except Exception as error:  # memory analysis is backend dependent
+        return {"error": repr(error)}
+
+
+def run_case(n, nt, kind, repeats):
+    forward, loss = make_loss(n, nt, kind)
+    params = jnp.array([G / 4, 0.01, NU, W])
+    fwd = jax.jit(forward)
+    grad = jax.jit(jax.grad(loss))
+    start = time.perf_counter()
+    sol = jax.block_until_ready(fwd(params))
+    compile_fwd = time.perf_counter() - start
+    start = time.perf_counter()
+    g = jax.block_until_ready(grad(params))
+    compile_grad = time.perf_counter() - start
+    t_fwd = _best(fwd, params, repeats)
+    t_grad = _best(grad, params, repeats)
+    return {
+        "kind": kind, "n": n, "nt": nt,
+        "forward_s": t_fwd, "gradient_s": t_grad, "ratio": t_grad / t_fwd,
+        "first_call_forward_s": compile_fwd, "first_call_gradient_s": compile_grad,
+        "forward_iterations_total": int(jnp.sum(sol.iterations)),
+        "all_converged": bool(jnp.all(sol.converged)),
+        "gradient": [float(v) for v in g],
+        "memory_forward": _memory(forward, params),
+        "memory_gradient": _memory(jax.grad(loss), params),
+    }
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--n", type=int, default=128)
+    parser.add_argument("--nt", type=int, default=100)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--kinds", default="normal,slip")
+    parser.add_argument("--out", default=str(Path(__file__).parent / "results" / "gradients.json"))
+    args = parser.parse_args()
+    load_before = os.getloadavg()
+    cases = []
+    for kind in args.kinds.split(","):
+        case = run_case(args.n, args.nt, kind, args.repeats)
+        print(json.dumps({k: v for k, v in case.items() if not k.startswith("memory")}))
+        print("  memory forward", case["memory_forward"], "gradient", case["memory_gradient"])
+        cases.append(case)
+    result = {
+        "machine": {"platform": platform.platform(), "processor": platform.processor(),
+                    "cpu_count": os.cpu_count(), "jax": jax.__version__,
+                    "device": str(jax.devices()[0]),
+                    "load_average_before": load_before, "load_average_after": os.getloadavg()},
+        "dtype": "float64", "rtol": 1e-8,
+        "cases": cases,
+    }
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    Path(args.out).write_text(json.dumps(result, indent=2))
+    print("wrote", args.out)
+
+
+if __name__ == "__main__":
+    main()
