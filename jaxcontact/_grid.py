@@ -36,8 +36,7 @@ class Grid(eqx.Module):
         except TypeError:
             shape = (shape, shape)
         if len(shape) != 2 or not all(
-            isinstance(s, int) or (hasattr(s, "__index__") and not isinstance(s, bool))
-            for s in shape
+            hasattr(s, "__index__") and not isinstance(s, (bool, np.bool_)) for s in shape
         ):
             raise ValueError(f"shape must be two integers (nx, ny), got {shape!r}")
         shape = tuple(int(s) for s in shape)

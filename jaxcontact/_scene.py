@@ -212,10 +212,10 @@ class Scene(eqx.Module):
         _concrete_values("x", self.x, times)
         _concrete_values("y", self.y, times)
         if isinstance(self.normal, Force):
-            if normal_values is not None:
-                _validate.non_negative("normal force", normal_values)
-            elif not callable(self.normal.value):
+            if not callable(self.normal.value):
                 _validate.non_negative("normal force", self.normal.value)
+            elif normal_values is not None:
+                _validate.non_negative("normal force", normal_values)
         estimate = expected_contact_radius(
             self.indenter, grid, material, times, self.normal, normal_values
         )
