@@ -1,5 +1,7 @@
 """`jc.solve`: the entry point. Time stepping over the scene's `times` with `lax.scan`."""
 
+import sys
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -44,9 +46,16 @@ def _history_displacement(operator, poisson, traction, nd):
     return operator.apply(traction, poisson)
 
 
+def _print_progress(step, n_steps):
+    step = int(step)
+    every = max(1, n_steps // 20)
+    if step % every == 0 or step == n_steps - 1:
+        print(f"jaxcontact: step {step + 1}/{n_steps}", file=sys.stderr, flush=True)
+
+
 @eqx.filter_jit
 def _solve(scene: Scene, operator: HalfSpace, config: StepConfig, history_kind: str,
-           scheme: str) -> Solution:
+           scheme: str, progress=None) -> Solution:
     grid = scene.grid
     dtype = grid.size.dtype
     nd = config.nd
@@ -91,6 +100,8 @@ def _solve(scene: Scene, operator: HalfSpace, config: StepConfig, history_kind: 
             operator, config, compliance, poisson, friction, h0, history,
             w_target, t_target, previous_slip, p_start, q_start, normal_guess=guess,
         )
+        if progress is not None:
+            jax.debug.callback(progress, k, times.shape[0], ordered=True)
         tau_new = jnp.zeros((3, nx, ny), dtype).at[:nd].set(res.shear).at[2].set(res.pressure)
         h_state = hereditary.update(h_state, tau_prev, tau_new, k, dt)
         return (res.pressure, res.shear, res.slip, p_prev, q_prev, h_state), res
@@ -139,6 +150,7 @@ def solve(
     history: str = "auto",
     scheme: str = "constant",
     operator: HalfSpace | None = None,
+    progress=None,
 ) -> Solution:
     """Solve a contact scene over its time axis.
 
@@ -166,6 +178,9 @@ def solve(
       in the time step).
     - `operator`: a prebuilt `jc.HalfSpace` to reuse across calls (must match the
       coupling the scene needs; built here if omitted).
+    - `progress`: `None` (default: silent), `True` (print `step k/nt` to stderr about
+      every 5 % of the steps, as the steps complete), or a callable
+      `f(step_index, n_steps)` called after each step (through `jax.debug.callback`).
 
     **Returns:** a `jc.Solution`. Steps that do not converge are flagged in
     `converged` (the time stepping carries on); nothing fails silently.
@@ -222,4 +237,10 @@ def solve(
     )
     if operator is None:
         operator = _operator_for(scene, nd)
-    return _solve(scene, operator, config, history, scheme)
+    if progress is True:
+        progress = _print_progress
+    elif progress is False:
+        progress = None
+    elif progress is not None and not callable(progress):
+        raise TypeError(f"progress must be None, a bool or a callable, got {progress!r}")
+    return _solve(scene, operator, config, history, scheme, progress)
