@@ -27,10 +27,11 @@ A request is one JSON object per line::
 
     {"code": "contactmechanics" | "tamaas", "n": 256, "size": L, "radius": R,
      "force": W, "e_star": E*, "poisson": nu, "tol": 1e-8, "repeats": 3,
-     "save": "/path/to/pressure.npy" (optional)}
+     "save": "/path/to/pressure.npy" (optional), "warm": false (optional)}
 
 and the answer one line: the solve times [s] (each solve from the peer's own initial
-state; set-up such as the kernel spectra is built once per (code, n, size) and not
+state, or with "warm": true from the Hertz pressure scaled to W, the kind of guess
+jaxcontact's load-control solve starts from; set-up such as the kernel spectra is built once per (code, n, size) and not
 timed), the peak pressure [stress], the number of cells in contact (pressure > 0),
 the rigid-body approach [length] (ContactMechanics only: Tamaas is periodic and its
 mean displacement is a gauge), the iteration count where the peer reports it, and the
@@ -90,6 +91,18 @@ def sphere_heights(n: int, size: float, radius: float) -> np.ndarray:
     return -(x * x + y * y) / (2 * radius)
 
 
+def hertz_guess(n: int, size: float, radius: float, force: float, e_star: float):
+    """Hertz pressure p0 sqrt(1 - r^2/a^2) at the cell centres, scaled so that its sum
+    times the cell area is `force`: the same kind of initial guess as jaxcontact's
+    load-control solve starts from; shape (n, n) [stress]."""
+    a = (3 * force * radius / (4 * e_star)) ** (1 / 3)
+    dx = size / n
+    c = (np.arange(n) - (n - 1) / 2) * dx
+    x, y = np.meshgrid(c, c, indexing="ij")
+    p = np.sqrt(np.maximum(1 - (x * x + y * y) / (a * a), 0.0))
+    return p * force / (p.sum() * dx * dx)
+
+
 class ContactMechanicsHertz:
     """Non-periodic Hertz with ContactMechanics (set-up once, solves timed)."""
 
@@ -111,14 +124,23 @@ class ContactMechanicsHertz:
             physical_sizes=sizes,
         )
         self.solver = constrained_conjugate_gradients
+        self.radius, self.e_star = float(req["radius"]), float(req["e_star"])
 
-    def solve(self, force: float, tol: float):
+    def solve(self, force: float, tol: float, warm: bool = False):
+        initial = None
+        if warm:
+            # Its pixel forces are negative in compression, on the 2n x 2n domain.
+            initial = np.zeros(self.substrate.nb_domain_grid_pts)
+            initial[: self.n, : self.n] = -self.cell_area * hertz_guess(
+                self.n, self.size, self.radius, force, self.e_star
+            )
         res = self.solver(
             self.substrate,
             self.topography,
             external_force=force,
             pentol=tol,
             maxiter=100000,
+            initial_forces=initial,
         )
         # Pixel forces on the 2n x 2n computational grid, compressive < 0 or > 0
         # depending on the version's sign convention: take the sign of the total.
@@ -152,9 +174,15 @@ class TamaasHertz:
         self.model.E = float(req["e_star"]) * (1 - nu * nu)
         self.model.nu = nu
         self.heights = sphere_heights(self.n, self.size, float(req["radius"]))
+        self.radius, self.e_star = float(req["radius"]), float(req["e_star"])
 
-    def solve(self, force: float, tol: float):
-        self.model.traction[...] = 0.0
+    def solve(self, force: float, tol: float, warm: bool = False):
+        # PolonskyKeerRey starts from the model's current traction.
+        self.model.traction[...] = (
+            hertz_guess(self.n, self.size, self.radius, force, self.e_star)
+            if warm
+            else 0.0
+        )
         self.model.displacement[...] = 0.0
         solver = self.tm.PolonskyKeerRey(self.model, self.heights, tol)
         solver.max_iter = 100000
@@ -192,7 +220,7 @@ def handle(req, cache: dict) -> dict:
     times, out = [], None
     for _ in range(max(1, int(req.get("repeats", 1)))):
         t = time.perf_counter()
-        out = peer.solve(force, tol)
+        out = peer.solve(force, tol, warm=bool(req.get("warm", False)))
         times.append(time.perf_counter() - t)
     p = out.pop("pressure")
     if req.get("save"):
