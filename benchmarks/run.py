@@ -933,19 +933,22 @@ def plot_all(out, stem: Path, log=print):
         finish(fig, [ax], "leeradok", "Lee-Radok, Zener ratio 10 (labels: Nt)")
     if hz:
         fig, ax = plt.subplots(figsize=(6, 4.5))
-        for dtype, m in (("float64", "o"), ("float32", "s")):
+        for dtype, m, color in (("float64", "o", "C0"), ("float32", "s", "C1")):
             sel = [r for r in hz if r["dtype"] == dtype and r["time_per_iteration_s"]]
             if sel:
                 ax.plot(
                     [r["n"] for r in sel],
                     [r["time_per_iteration_s"] for r in sel],
                     m + "-",
+                    color=color,
                     label=f"{dtype}: time per CG iteration",
                 )
                 ax.plot(
                     [r["n"] for r in sel],
                     [r["conv_naive_s"] for r in sel],
                     m + ":",
+                    color=color,
+                    mfc="none",
                     label=f"{dtype}: one padded rfft2/irfft2 pair (2n)",
                 )
         ax.set_ylabel("seconds")
