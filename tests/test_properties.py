@@ -186,6 +186,7 @@ FRICTION_CASES = dict(
 )
 
 
+@pytest.mark.slow  # one coupled compile (~30 s CPU); test_partial_slip covers Coulomb
 @settings(max_examples=3, deadline=None, derandomize=True)
 @given(**FRICTION_CASES)
 def test_friction_balance_coulomb_and_rotation(nu, mu, ratio):
@@ -219,7 +220,7 @@ def test_friction_balance_coulomb_and_rotation(nu, mu, ratio):
 # ---------------------------------------------------------------------------------------
 # Elastic limit of every viscoelastic material (the normal-only time stepper).
 
-VISCO_TIMES = jnp.linspace(0.0, 1.0, 4)
+VISCO_TIMES = jnp.linspace(0.0, 1.0, 11)  # nt = 11 as in test_stress (shared program)
 
 
 def visco(material, loads):
@@ -233,7 +234,7 @@ def elastic_reference(loads, g, nu):
 
 
 LOADS = dict(
-    loads=st.lists(st.floats(0.1, 1.2), min_size=4, max_size=4).map(
+    loads=st.lists(st.floats(0.1, 1.2), min_size=11, max_size=11).map(
         lambda v: W0 * np.asarray(v)
     ),
     g=log_uniform(1e5, 1e7),
@@ -254,6 +255,7 @@ def test_zener_with_equal_moduli_is_elastic(tau, loads, g, nu):
     assert_elastic(sol, loads * g / G0, g, nu, 1e-6)
 
 
+@pytest.mark.slow  # its own compiled program (~10 s)
 @settings(max_examples=3, deadline=None, derandomize=True)
 @given(**LOADS)
 def test_prony_with_zero_arms_is_elastic(loads, g, nu):
@@ -261,6 +263,7 @@ def test_prony_with_zero_arms_is_elastic(loads, g, nu):
     assert_elastic(sol, loads * g / G0, g, nu, 1e-6)
 
 
+@pytest.mark.slow  # its own compiled program (~10 s)
 @settings(max_examples=3, deadline=None, derandomize=True)
 @given(log_ratio=st.floats(6.0, 12.0), **LOADS)
 def test_stiff_maxwell_over_a_short_time_is_elastic(log_ratio, loads, g, nu):
@@ -271,10 +274,14 @@ def test_stiff_maxwell_over_a_short_time_is_elastic(log_ratio, loads, g, nu):
     assert_elastic(sol, loads * g / G0, g, nu, 10 * 10.0**-log_ratio + 1e-6)
 
 
-@pytest.mark.parametrize("material", ["zener", "prony", "maxwell"])
+@pytest.mark.parametrize(
+    "material",
+    ["zener", pytest.param("prony", marks=pytest.mark.slow),
+     pytest.param("maxwell", marks=pytest.mark.slow)],
+)
 def test_elastic_limit_is_not_trivially_true(material):
     # Guard against a vacuous limit test: away from the limit the same comparison fails.
-    g, nu, loads = G0, NU0, W0 * np.array([0.5, 0.5, 1.0, 1.0])
+    g, nu, loads = G0, NU0, W0 * np.repeat([0.5, 1.0], [5, 6])
     mat = {
         "zener": jc.Zener(g, g / 2, 0.5, nu),
         "prony": jc.Prony(g, np.array([g, 0.0]), np.array([0.1, 3.0]), nu),
