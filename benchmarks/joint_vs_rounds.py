@@ -46,6 +46,10 @@ Notes on the design of `jaxcontact/_solver/joint.py` (what was tried):
 - lagged bound (kept): the inner problem is a convex QP, robust in the same sweep
   (the only failures are the cases the rounds cannot solve either: F = 0.95 mu W and
   mu = 0.1 with F = 0.5 mu W, where no stick cell survives);
+- wired in as the default of `contact_step` with the rounds as fallback; the one
+  failure found by tests/test_joint.py (displacement control past gross sliding with
+  the total slip law: the stick set cycles) now gives up after 150 iterations without
+  progress and falls back;
 - the step: exact minimisation over span{z_p, z_q, previous step} with Parseval
   quadratic forms (no extra inverse FFT), outside changes folded into the next
   forward transform; this replaced a plain PCG with exact resyncs (about the same
