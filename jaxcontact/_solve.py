@@ -14,7 +14,7 @@ from ._operator import HalfSpace
 from ._scene import Scene, normal_targets, tangential_targets
 from ._solution import Solution
 from ._solver.coupled import StepConfig
-from ._solver.implicit import differentiable_step
+from ._solver.implicit import differentiable_step, empty_seed
 from ._solver.normal import hertzian_guess
 
 
@@ -75,7 +75,7 @@ def _solve(scene: Scene, operator: HalfSpace, config: StepConfig, history_kind: 
     steps_dt = jnp.concatenate([jnp.zeros((1,), dtype), jnp.diff(times)])
 
     def step(carry, inputs):
-        p_prev, q_prev, s_prev, p_prev2, q_prev2, h_state = carry
+        p_prev, q_prev, s_prev, p_prev2, q_prev2, h_state, seed = carry
         w_target, t_target, k, dt = inputs
         tau_prev = jnp.zeros((3, nx, ny), dtype).at[:nd].set(q_prev).at[2].set(p_prev)
         prepared = hereditary.prepare(h_state, tau_prev, k, dt)
@@ -96,20 +96,21 @@ def _solve(scene: Scene, operator: HalfSpace, config: StepConfig, history_kind: 
             fresh = hertzian_guess(h0 + history[2], w_target, e_star, area)
             guess = jnp.where(jnp.sum(p_start) > 0, p_start, fresh)
         previous_slip = jnp.zeros_like(s_prev) if use_total_slip else s_prev
-        res = differentiable_step(
+        res, seed = differentiable_step(
             operator, config, compliance, poisson, friction, h0, history,
             w_target, t_target, previous_slip, p_start, q_start, normal_guess=guess,
+            adjoint_seed=seed,
         )
         if progress is not None:
             jax.debug.callback(progress, k, times.shape[0], ordered=True)
         tau_new = jnp.zeros((3, nx, ny), dtype).at[:nd].set(res.shear).at[2].set(res.pressure)
         h_state = hereditary.update(h_state, tau_prev, tau_new, k, dt)
-        return (res.pressure, res.shear, res.slip, p_prev, q_prev, h_state), res
+        return (res.pressure, res.shear, res.slip, p_prev, q_prev, h_state, seed), res
 
     zeros_p = jnp.zeros((nx, ny), dtype)
     zeros_q = jnp.zeros((nd, nx, ny), dtype)
     init = (zeros_p, zeros_q, zeros_q, zeros_p, zeros_q,
-            hereditary.init((3, nx, ny), dtype))
+            hereditary.init((3, nx, ny), dtype), empty_seed(zeros_p, zeros_q))
     steps = jnp.arange(times.shape[0])
     _, res = jax.lax.scan(step, init, (w_targets, t_targets, steps, steps_dt))
 

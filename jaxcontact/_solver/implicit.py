@@ -36,7 +36,8 @@ import jax
 import jax.numpy as jnp
 from jax.scipy.sparse.linalg import gmres
 
-from .coupled import StepConfig, StepResult, contact_step
+from .coupled import StepConfig, contact_step
+
 
 
 def _displacements(operator, config: StepConfig, compliance, poisson, p, q):
@@ -149,19 +150,25 @@ def _slip_out(operator, config, x, theta, kt):
 
 
 def _make_attach(config: StepConfig, rtol: float, maxiter: int):
-    """A function `x, slip = attach(x, slip, frozen, theta, operator)` that returns its
-    inputs unchanged and whose vector-Jacobian product is the implicit one."""
+    """A function `x, slip, seed = attach(x, slip, frozen, theta, operator, seed)` that
+    returns `x`, `slip` unchanged and whose vector-Jacobian product is the implicit one.
+
+    `seed` carries nothing forward (zeros); backwards, the cotangent that reaches it is
+    the adjoint of the NEXT step (returned by that step's `bwd` as the cotangent of its
+    `seed` input), used as the initial guess of this step's adjoint solve: consecutive
+    steps have close adjoints. Its own cotangent never enters a parameter gradient.
+    """
 
     @jax.custom_vjp
-    def attach(x, slip, frozen, theta, operator):
-        return x, slip
+    def attach(x, slip, frozen, theta, operator, seed):
+        return x, slip, jax.tree.map(jnp.zeros_like, seed)
 
-    def fwd(x, slip, frozen, theta, operator):
-        return (x, slip), (x, frozen, theta, operator)
+    def fwd(x, slip, frozen, theta, operator, seed):
+        return attach(x, slip, frozen, theta, operator, seed), (x, frozen, theta, operator)
 
     def bwd(saved, cotangents):
         x, frozen, theta, operator = saved
-        x_bar, slip_bar = cotangents
+        x_bar, slip_bar, guess = cotangents
         kt = frozen[5]
         if config.nd > 0:
             _, slip_vjp = jax.vjp(lambda x, theta: _slip_out(operator, config, x, theta, kt),
@@ -174,17 +181,14 @@ def _make_attach(config: StepConfig, rtol: float, maxiter: int):
         _, residual_vjp = jax.vjp(lambda x, theta: _residual(operator, config, frozen, x, theta),
                                   x, theta)
 
-        def transpose_jacobian(lam):
-            return residual_vjp(lam)[0]
-
-        lam, _ = gmres(transpose_jacobian, x_bar, tol=rtol, atol=0.0, restart=40,
-                       maxiter=maxiter, solve_method="incremental")
+        lam, _ = gmres(lambda v: residual_vjp(v)[0], x_bar, x0=guess, tol=rtol,
+                       atol=0.0, restart=40, maxiter=maxiter, solve_method="incremental")
         theta_bar = residual_vjp(lam)[1]
         theta_bar = jax.tree.map(jnp.negative, theta_bar)
         if theta_extra is not None:
             theta_bar = jax.tree.map(jnp.add, theta_bar, theta_extra)
         zero = lambda tree: jax.tree.map(jnp.zeros_like, tree)  # noqa: E731
-        return zero(x), zero(slip_bar), None, theta_bar, zero(operator)
+        return zero(x), zero(slip_bar), None, theta_bar, zero(operator), lam
 
     attach.defvjp(fwd, bwd)
     return attach
@@ -193,14 +197,18 @@ def _make_attach(config: StepConfig, rtol: float, maxiter: int):
 def differentiable_step(
     operator, config: StepConfig, compliance, poisson, friction, h0, history,
     normal_target, tangential_target, previous_slip, p0, q0, normal_guess=None,
-    *, adjoint_rtol: float | None = None, adjoint_maxiter: int = 20,
-) -> StepResult:
+    adjoint_seed=None, *, adjoint_rtol: float | None = None, adjoint_maxiter: int = 20,
+):
     """`contact_step` whose pressure, shear, approach, tangential displacement and slip
     carry exact (implicit) derivatives with respect to every input except the warm
     starts `p0`, `q0`, `normal_guess` (which do not change the solution).
 
     The forward solve is `contact_step` on inputs with their derivatives stopped; the
     derivatives are attached afterwards by `_make_attach` (see the module docs).
+    `adjoint_seed` (`None`, or the seed returned by the previous step) links the
+    adjoint solves of consecutive steps (warm start, see `_make_attach`).
+
+    **Returns:** `(StepResult, seed)`, the seed to pass to the next step.
     `adjoint_rtol` (default: the step's `rtol`) and `adjoint_maxiter` (GMRES restarts
     of 40 iterations) bound the adjoint solve.
     """
@@ -225,5 +233,15 @@ def differentiable_step(
     rtol = config.rtol if adjoint_rtol is None else adjoint_rtol
     attach = _make_attach(config, rtol, adjoint_maxiter)
     slip = res.slip if nd > 0 else jnp.zeros_like(res.slip)
-    (p, q, dz, dt), slip = attach(x, slip, frozen, theta, operator)
-    return res._replace(pressure=p, shear=q, approach=dz * kz, delta_t=dt * kt, slip=slip)
+    if adjoint_seed is None:
+        adjoint_seed = empty_seed(res.pressure, res.shear)
+    (p, q, dz, dt), slip, seed = attach(x, slip, frozen, theta, operator, adjoint_seed)
+    result = res._replace(pressure=p, shear=q, approach=dz * kz, delta_t=dt * kt, slip=slip)
+    return result, seed
+
+
+def empty_seed(pressure, shear):
+    """The adjoint seed of a first step: zeros shaped like `(p, q, delta_z, delta_t)`."""
+    dtype = pressure.dtype
+    return (jnp.zeros_like(pressure), jnp.zeros_like(shear), jnp.zeros((), dtype),
+            jnp.zeros(shear.shape[:1], dtype))
