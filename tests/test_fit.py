@@ -109,7 +109,7 @@ def surrogate_case(kind, dtype=jnp.float64, nt=24):
     return data, template, (hertz_volterra_depth, ctx)
 
 
-@pytest.mark.parametrize("kind", ["force", "depth"])
+@pytest.mark.parametrize("kind", ["force", pytest.param("depth", marks=pytest.mark.slow)])
 def test_fit_recovers_pmma_on_the_closed_form_model(kind):
     """Noiseless data: every parameter to 1e-6 (the optimiser logic, start to end)."""
     data, template, model = surrogate_case(kind)
@@ -143,6 +143,7 @@ def test_fit_from_a_poor_start():
     assert fit.loss_history[0] > 1e-3 and fit.loss < 1e-18
 
 
+@pytest.mark.slow
 def test_fit_float32_on_the_closed_form_model():
     data, template, model = surrogate_case("force", dtype=jnp.float32)
     fit = jc.fit_prony(data, template, 2, _model=model)
@@ -197,6 +198,7 @@ def test_sensitivities_match_finite_differences_and_predict_the_noise_error():
     np.testing.assert_allclose(rows[1][2], std_fd, rtol=1e-3)
 
 
+@pytest.mark.slow
 def test_fit_poisson_is_not_identifiable_from_normal_indentation_alone():
     """Only G / (1 - nu) enters a frictionless indentation: fitting nu too leaves one
     direction undetermined, reported as an infinite std, never a NaN."""
