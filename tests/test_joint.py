@@ -202,6 +202,7 @@ def test_contact_step_never_claims_a_wrong_answer():
     assert np.all(np.isfinite(sol.pressure)) and np.all(np.isfinite(sol.shear))
 
 
+@pytest.mark.slow
 def test_contact_step_float32():
     """float32 through `contact_step` (method "joint"; float32 steps currently take
     the rounds, see coupled.py): converges at rtol 1e-5 and matches the float64 joint
@@ -235,7 +236,10 @@ def zener(method):
     return jax.tree_util.tree_map(np.asarray, jc.solve(zener_scene(), method=method))
 
 
-@pytest.mark.parametrize("method", ["joint", pytest.param("rounds", marks=pytest.mark.slow)])
+# Slow: each method compiles the whole jc.solve pipeline (~200 s under the loaded
+# 2-core machine of the last run; the rounds then take ~20 min on the failing steps).
+@pytest.mark.slow
+@pytest.mark.parametrize("method", ["joint", "rounds"])
 def test_zener_total_slip_load_control_converges(method):
     """The issue's failing scene (the rounds ran out at steps 13-20) converges at every
     step with both methods, meets both loads, and keeps |q| <= mu p."""
