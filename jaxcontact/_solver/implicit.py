@@ -39,29 +39,13 @@ from jax.scipy.sparse.linalg import gmres
 from .coupled import StepConfig, contact_step
 
 
-
 def _displacements(operator, config: StepConfig, compliance, poisson, p, q):
-    """`(u_z, u_t)` = `C K (q, p)` with the blocks `contact_step` uses."""
-    nd = config.nd
-    p_hat = operator.forward(p)
-    uz_hat = compliance * operator.normal_spectrum(poisson) * p_hat
-    if nd == 0:
-        return operator.inverse(uz_hat), None
-    xx, xy, yy = operator.tangential_blocks(poisson)
-    q_hat = operator.forward(q)
-    if nd == 1:
-        ut_hat = [compliance * xx * q_hat[0]]
-    else:
-        ut_hat = [compliance * (xx * q_hat[0] + xy * q_hat[1]),
-                  compliance * (xy * q_hat[0] + yy * q_hat[1])]
-    if config.coupled:
-        zx, zy = operator.coupling_spectra(poisson)
-        uz_hat = uz_hat + 1j * compliance * zx * q_hat[0]
-        ut_hat[0] = ut_hat[0] - 1j * compliance * zx * p_hat
-        if nd == 2 and zy is not None:
-            uz_hat = uz_hat + 1j * compliance * zy * q_hat[1]
-            ut_hat[1] = ut_hat[1] - 1j * compliance * zy * p_hat
-    return operator.inverse(uz_hat), operator.inverse(jnp.stack(ut_hat))
+    """`(u_z, u_t)` = `C K (q, p)`: the operator built for the scene carries exactly the
+    blocks the step uses (its coupling mode, and `q_y` only when `nd = 2`)."""
+    nx, ny = p.shape
+    traction = jnp.zeros((3, nx, ny), p.dtype).at[: config.nd].set(q).at[2].set(p)
+    u = compliance * operator.apply(traction, poisson)
+    return u[2], u[: config.nd]
 
 
 def _spectrum_diagonal(operator, spectrum):
