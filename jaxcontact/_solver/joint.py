@@ -101,6 +101,7 @@ _SET_RESTART = 1  # 1: drop the previous step when an active set changes
 # the total slip law, where the load fix of a load-controlled direction shifts every
 # slip cell back inside its disc). Converging runs halve it every few iterations.
 _STALL = 150
+_TRANSPOSED = True  # spectra in (ky, kx) layout inside the loop
 
 
 def _safe_div(a, b):
@@ -247,6 +248,25 @@ def joint_solve(
     izy = 1j * compliance * zy if (nd == 2 and zy is not None) else None
     w_ky, n_par = _parseval_weights(grid)
     w_ky = jnp.asarray(w_ky, dtype)[None, :]  # (1, ky): broadcasts over kx
+    # Self-compliances (the operator's diagonal): the kernels at zero offset.
+    c_zz = jnp.sum(w_ky * nn) / n_par
+    c_tt = jnp.sum(w_ky * xx) / n_par
+    if not grid.periodic and _TRANSPOSED:  # spectra in the (ky, kx) layout of `forward` below
+        def _t(a):
+            return None if a is None else jnp.swapaxes(a, -1, -2)
+
+        nn, xx, xy, yy, zx, zy, izx, izy, w_ky = (
+            _t(a) for a in (nn, xx, xy, yy, zx, zy, izx, izy, w_ky))
+    # Parseval weights folded into the (real) symbols once, outside the loop: the
+    # quadratic forms of a direction's spectrum are then plain sums over the spectrum
+    # (XLA:CPU runs a reduction fused with a broadcast weight ~10x slower).
+    wn = w_ky / n_par
+    s_zz = wn * nn
+    s_xx = wn * xx
+    s_zx = wn * compliance * zx
+    if nd == 2:
+        s_xy, s_yy = wn * xy, wn * yy
+        s_zy = wn * compliance * zy if izy is not None else None
 
     def k_of_p(ph):
         """Spectra `(u_z, u_t...)` of a pressure spectrum."""
@@ -267,6 +287,22 @@ def joint_solve(
     def k_full(th):
         return k_of_p(th[0]) + k_of_q(th[1:])
 
+    def quad_forms(zh):
+        """`(z_p.C K_zz z_p, z_p.C K_zt z_q, z_q.C K_tt z_q)` from the spectrum of
+        `z = (z_p, z_q)`: one pass over it (Parseval)."""
+        pr, pi = jnp.real(zh[0]), jnp.imag(zh[0])
+        xr, xi = jnp.real(zh[1]), jnp.imag(zh[1])
+        t11 = s_zz * (pr * pr + pi * pi)
+        # Re(conj(P) i zx Q) = -zx Im(conj(P) Q)
+        t12 = -s_zx * (pr * xi - pi * xr)
+        t22 = s_xx * (xr * xr + xi * xi)
+        if nd == 2:
+            yr, yi = jnp.real(zh[2]), jnp.imag(zh[2])
+            if s_zy is not None:
+                t12 = t12 - s_zy * (pr * yi - pi * yr)
+            t22 = t22 + 2 * s_xy * (xr * yr + xi * yi) + s_yy * (yr * yr + yi * yi)
+        return jnp.sum(jnp.stack([t11, t12, t22]), axis=(-2, -1))
+
     def ip(ah, bh):
         """Real-space inner product from spectra (Parseval)."""
         prod = jnp.real(jnp.conj(ah) * bh)
@@ -274,11 +310,24 @@ def joint_solve(
             prod = jnp.sum(prod, axis=0)
         return jnp.sum(w_ky * prod) / n_par
 
-    def forward(x):
-        return operator.forward(x)
+    if grid.periodic or not _TRANSPOSED:
+        def forward(x):
+            return operator.forward(x)
 
-    def inverse(uh):
-        return operator.inverse(uh)
+        def inverse(uh):
+            return operator.inverse(uh)
+    else:
+        # `operator.forward` / `inverse` with the spectrum TRANSPOSED, `(ky, kx)`: the
+        # column transforms run along the last (contiguous) axis, so XLA keeps the
+        # spectra in that layout and every spectral pass reads them contiguously (with
+        # the `(kx, ky)` layout, each multiply by a symbol was a strided transpose).
+        def forward(x):
+            spec = jnp.fft.rfft(x, n=2 * ny, axis=-1)
+            return jnp.fft.fft(jnp.swapaxes(spec, -1, -2), n=2 * nx, axis=-1)
+
+        def inverse(uh):
+            field = jnp.fft.ifft(uh, axis=-1)[..., :nx]
+            return jnp.fft.irfft(jnp.swapaxes(field, -1, -2), n=2 * ny, axis=-1)[..., :ny]
 
     def apply(x):
         """Displacements `(u_z, u_t...)` of the traction `(p, q...)`: one application."""
@@ -296,9 +345,6 @@ def joint_solve(
             jnp.sum(jnp.where(contact[None], up[1:] + b, 0) ** 2))
         return up + uq, jnp.stack([s_n, s_t])
 
-    # Self-compliances (the operator's diagonal): the kernels at zero offset.
-    c_zz = jnp.sum(w_ky * nn) / n_par
-    c_tt = jnp.sum(w_ky * xx) / n_par
     w_p = c_tt / c_zz  # preconditioner weight of p relative to q
 
     f_norm = jnp.sqrt(jnp.sum(tangential_target**2))
@@ -397,15 +443,13 @@ def joint_solve(
     ev_init = evaluate(x_init, u_init, scales_init, bound_init, sliding_init)
 
     zeros_x = jnp.zeros((1 + nd, nx, ny), dtype)
-    spec = jax.eval_shape(forward, zeros_x)
-    zeros_h = jnp.zeros(spec.shape, spec.dtype)
     init = dict(
         x=x_init, u=u_init, bound=bound_init, sliding=sliding_init, scales=scales_init,
         ev=ev_init, res_ref=ev_init["residual"],
         best=ev_init["residual"], since=jnp.array(0),
-        c=zeros_x, pending=jnp.array(False),  # outside change not yet in u
         fresh=jnp.zeros((nx, ny), bool),
-        s=zeros_x, s_h=zeros_h, ks_h=zeros_h, have_prev=jnp.array(False),
+        # previous change of x, its displacement, and their product
+        s=zeros_x, ks=zeros_x, sks=jnp.zeros((), dtype), have_prev=jnp.array(False),
         it=jnp.array(0), certified=jnp.array(True), updates=jnp.array(0),
         applications=jnp.asarray(1.5, dtype),
         counts=jnp.zeros(4, jnp.int32),
@@ -475,40 +519,29 @@ def joint_solve(
             z_q = pr
         z = jnp.concatenate([z_p[None], z_q])
 
-        # -- transforms: the direction, and the pending outside change ---------------
-        z_h = forward(z)
-        kz_p, kz_q = k_of_p(z_h[0]), k_of_q(z_h[1:])
-        pending = s["pending"]
-        kc_h = jax.lax.cond(pending, lambda: k_full(forward(s["c"])), lambda: zeros_h)
+        # -- exact minimisation over span{z_p, z_q, previous change} -----------------
+        # The quadratic forms of z from its spectrum (one forward transform); those
+        # with the previous change from its displacement (real space).
+        h11, h12, h22 = quad_forms(forward(z))
+        prev, kprev = s["s"], s["ks"]
+        have = s["have_prev"]
 
-        # -- exact minimisation over span{z_p, z_q, previous step} --------------------
         def disc(a, b_):
             return jnp.sum(curv_disc * _dot(a, b_))
 
-        prev = s["s"]
-        have = s["have_prev"]
-        s_h, ks_h = s["s_h"], s["ks_h"]
-        # Gradient along each basis vector, with the pending change's displacement.
-        g1 = jnp.sum(r_p * z_p) + ip(z_h[0], kc_h[0])
-        g2 = jnp.sum(r_q * z_q) + ip(z_h[1:], kc_h[1:])
-        r_prev = jnp.sum(r_p * prev[0]) + jnp.sum(r_q * prev[1:])
-        g3 = jnp.where(have, r_prev + ip(s_h, kc_h), 0.0)
-        h11 = ip(z_h[0], kz_p[0])
-        h12 = ip(z_h[0], kz_q[0])
-        h22 = ip(z_h[1:], kz_q[1:]) + disc(z_q, z_q)
-        h13 = jnp.where(have, ip(z_h[0], ks_h[0]), 0.0)
-        h23 = jnp.where(have, ip(z_h[1:], ks_h[1:]) + disc(z_q, prev[1:]), 0.0)
-        h33 = jnp.where(have, ip(s_h, ks_h) + disc(prev[1:], prev[1:]), 0.0)
+        g1 = jnp.sum(r_p * z_p)
+        g2 = jnp.sum(r_q * z_q)
+        g3 = jnp.where(have, jnp.sum(r_p * prev[0]) + jnp.sum(r_q * prev[1:]), 0.0)
+        h22 = h22 + disc(z_q, z_q)
+        h13 = jnp.where(have, jnp.sum(z_p * kprev[0]), 0.0)
+        h23 = jnp.where(have, jnp.sum(z_q * kprev[1:]) + disc(z_q, prev[1:]), 0.0)
+        h33 = jnp.where(have, s["sks"] + disc(prev[1:], prev[1:]), 0.0)
         hm = jnp.stack([jnp.stack([h11, h12, h13]), jnp.stack([h12, h22, h23]),
                         jnp.stack([h13, h23, h33])])
         alpha = _solve3(hm, jnp.stack([g1, g2, g3]))
         alpha = jnp.where(jnp.isfinite(alpha), alpha, 0.0)
         a1, a2, a3 = alpha[0], alpha[1], alpha[2]
         step = jnp.concatenate([(a1 * z_p)[None], a2 * z_q]) + a3 * prev
-        step_h = jnp.concatenate([(a1 * z_h[0])[None], a2 * z_h[1:]]) + a3 * s_h
-        kstep_h = a1 * kz_p + a2 * kz_q + a3 * ks_h
-        u_new = u + inverse(kstep_h + kc_h)
-        applications = s["applications"] + 1 + 0.5 * pending
 
         # -- projections -------------------------------------------------------------
         x_step = x + step
@@ -521,22 +554,22 @@ def joint_solve(
             p_new = rescale(p_new)
         q_new = settle_shear(q_step, bound, jnp.zeros_like(contact), sliding)
         x_new = jnp.concatenate([p_new[None], q_new])
-        c_new = x_new - x_step
-        acc = jnp.minimum(residual, 1.0)
-        fold = (jnp.max(jnp.abs(c_new[0])) > _FOLD_P * acc * jnp.max(p_new)) | (
-            jnp.max(jnp.abs(c_new[1:])) > _FOLD_Q * acc * jnp.max(bound))
+
+        # -- the exact displacement of the whole change (one application) -----------
+        d = x_new - x
+        kd = apply(d)
+        u_new = u + kd
         it = s["it"] + 1
         periodic = it % config.resync_every == 0
         u_new = jax.lax.cond(periodic, lambda: apply(x_new), lambda: u_new)
-        applications = applications + periodic
-        pending_new = fold & ~periodic
+        applications = s["applications"] + 1.5 + periodic
         ev_new = evaluate(x_new, u_new, s["scales"], bound, sliding)
         changed = (jnp.any((p_new > 0) != contact) | jnp.any(ev_new["stick"] != stick)
                    | jnp.any(release) | jnp.any(overlap))
         if _DEBUG:
             jax.debug.print(
-                "it {} res_n {:.2e} res_t {:.2e} alpha {} fold {} changed {} dC {} dS {} "
-                "rel {} ov {}", it, ev["res_n"], ev["res_t"], alpha, fold, changed,
+                "it {} res_n {:.2e} res_t {:.2e} alpha {} changed {} dC {} dS {} "
+                "rel {} ov {}", it, ev["res_n"], ev["res_t"], alpha, changed,
                 jnp.sum((p_new > 0) != contact), jnp.sum(ev_new["stick"] != stick),
                 jnp.sum(release), jnp.sum(overlap))
 
@@ -571,15 +604,14 @@ def joint_solve(
         return dict(
             x=x_new, u=u_new, bound=bound_new, sliding=sliding_new, scales=scales_new,
             ev=ev_new, res_ref=res_ref,
-            c=c_new, pending=pending_new & ~update,
             fresh=full & ~ev_new["stick"],
-            s=step, s_h=step_h, ks_h=kstep_h, have_prev=~restart,
+            s=d, ks=kd, sks=jnp.sum(d * kd), have_prev=~restart,
             it=it, certified=update, updates=s["updates"] + update,
             best=jnp.minimum(s["best"], ev_new["residual"]),
             since=jnp.where(ev_new["residual"] <= 0.5 * s["best"], 0, s["since"] + 1),
             applications=applications + 1.5 * update,
             counts=s["counts"] + jnp.stack(
-                [pending_new, periodic, update, restart]).astype(jnp.int32),
+                [jnp.zeros((), bool), periodic, update, restart]).astype(jnp.int32),
         )
 
     s = jax.lax.while_loop(cond, body, init)
