@@ -125,6 +125,127 @@ def _residual(operator, config, frozen, x, theta):
     return f_p, f_q, f_dz, f_dt
 
 
+def _set_adjoint(a_full, active, load_control, a, b_bar, z_bar, guess, rtol, maxiter):
+    """Conjugate-gradient solve of the transposed system of one field on a frozen set.
+
+    The frictionless block (pressure `p` on the contact set, the approach as its
+    multiplier) and the uncoupled tangential block in x (shear on the stick set, the
+    tangential displacement as its multiplier) have the same structure. With the set
+    `S` (`active`), `A` the scaled operator (`a_full`), `mu` the adjoint on `S` and
+    `lam_m` the multiplier's adjoint, `(dF/dx)^T lambda = (b_bar, z_bar)` reads
+
+    - on `S`: `(A mu)_S + a lam_m = b_bar_S`,
+    - load control with a non-empty set: `-sum(mu) = z_bar`; otherwise (displacement
+      control, or no cell in `S`): `lam_m = z_bar + sum(mu)` and no `a lam_m` term,
+    - off `S`: `lambda = b_bar - A mu - a lam_m` (identity rows).
+
+    `a` is the load row's derivative `A_cell / scale` (module docs). The `S` block is
+    symmetric positive definite (on mean-free `mu` under load control): projected CG,
+    one FFT pair per iteration, started from `guess` (the next step's adjoint).
+    **Returns:** `(lambda, lam_m)`.
+    """
+    dtype = b_bar.dtype
+    c = active.astype(dtype)
+    n_s = jnp.sum(c)
+    has_set = n_s > 0
+    safe_n = jnp.maximum(n_s, 1.0)
+
+    def project(v):
+        v = c * v
+        if load_control:
+            v = v - c * jnp.sum(v) / safe_n
+        return v
+
+    mu0 = c * (-z_bar / safe_n) if load_control else jnp.zeros_like(b_bar)
+    b = c * (b_bar - a_full(mu0))
+    rhs = project(b)
+    v = project(guess)
+    r = rhs - project(a_full(v))
+    # Relative to the unprojected right-hand side: when b_bar is (nearly) uniform on S
+    # the projected one vanishes and the adjoint is all in lam_m.
+    limit = (rtol * jnp.sqrt(jnp.sum(b * b))) ** 2
+    rr = jnp.sum(r * r)
+
+    def cond(state):
+        _, _, _, rr, it = state
+        return (rr > limit) & (it < maxiter)
+
+    def body(state):
+        v, r, d, rr, it = state
+        ad = project(a_full(d))
+        alpha = rr / jnp.sum(d * ad)
+        v = v + alpha * d
+        r = r - alpha * ad
+        rr_new = jnp.sum(r * r)
+        d = r + (rr_new / rr) * d
+        return v, r, d, rr_new, it + 1
+
+    v, _, _, _, _ = jax.lax.while_loop(cond, body, (v, r, r, rr, jnp.array(0)))
+    mu = mu0 + v
+    a_mu = a_full(mu)
+    if load_control:
+        lam_m = jnp.where(has_set, jnp.sum(c * (b_bar - a_mu)) / safe_n / a, z_bar)
+        shift = jnp.where(has_set, a * lam_m, 0.0)
+    else:
+        lam_m = z_bar + jnp.sum(mu)
+        shift = 0.0
+    return jnp.where(active, mu, b_bar - a_mu - shift), lam_m
+
+
+def _area_scale(operator, contact):
+    """`a = A_cell / scale` of the load rows: `1 / sqrt(n_contact)`."""
+    n_contact = jnp.sum(contact).astype(operator.grid.cell_area.dtype)
+    return 1.0 / jnp.sqrt(jnp.maximum(n_contact, 1.0))
+
+
+def _normal_adjoint(operator, config, frozen, theta, x_bar, guess, rtol, maxiter):
+    """The adjoint of a frictionless step (`nd = 0`): `_set_adjoint` on the contact
+    set with `A = C K_zz / k_z`; the shear rows are identities (`lambda_q = q_bar`)."""
+    contact, kz = frozen[0], frozen[4]
+    compliance, poisson = theta[0], theta[1]
+    p_bar, q_bar, dz_bar, dt_bar = x_bar
+
+    def a_full(v):
+        return (compliance / kz) * operator.apply_normal(v, poisson)
+
+    lam_p, lam_dz = _set_adjoint(
+        a_full, contact, config.normal_force_control, _area_scale(operator, contact),
+        p_bar, dz_bar, guess[0], rtol, maxiter)
+    return lam_p, q_bar, lam_dz, dt_bar
+
+
+def _uncoupled_x_adjoint(operator, config, frozen, theta, x_bar, guess, rtol, maxiter,
+                         residual_vjp):
+    """The adjoint of an uncoupled step with shear in x only (`nd = 1`, no coupling
+    blocks) when it is not gross sliding under load control.
+
+    The Jacobian is block lower triangular (the normal rows do not see `q`), so the
+    transposed system is solved tangential block first (`_set_adjoint` on the stick
+    set with `A = C K_xx / k_t`: slip and out-of-contact shear rows are identities),
+    then the normal block with the right-hand side less the tangential rows'
+    derivatives with respect to `p` (the slip rows `q = mu p sign`), through one
+    product with the residual's transpose.
+    """
+    contact, stick, kt = frozen[0], frozen[1], frozen[5]
+    compliance, poisson = theta[0], theta[1]
+    p_bar, q_bar, dz_bar, dt_bar = x_bar
+    xx, _, _ = operator.tangential_blocks(poisson)
+
+    def a_full(v):
+        return (compliance / kt) * operator.inverse(xx * operator.forward(v))
+
+    lam_q, lam_dt = _set_adjoint(
+        a_full, stick, config.tangential_force_control[0], _area_scale(operator, contact),
+        q_bar[0], dt_bar[0], guess[1][0], rtol, maxiter)
+    lam_q, lam_dt = lam_q[None], lam_dt[None]
+    zero = jnp.zeros((), p_bar.dtype)
+    coupling = residual_vjp((jnp.zeros_like(p_bar), lam_q, zero, lam_dt))
+    lam_p, _, lam_dz, _ = _normal_adjoint(
+        operator, config, frozen, theta,
+        (p_bar - coupling[0], q_bar, dz_bar - coupling[2], dt_bar), guess, rtol, maxiter)
+    return lam_p, lam_q, lam_dz, lam_dt
+
+
 def _slip_out(operator, config, x, theta, kt):
     """Total slip after the step `u_t + history_t - delta_t` (carried to the next)."""
     p, q, _, dt = x
@@ -165,8 +286,27 @@ def _make_attach(config: StepConfig, rtol: float, maxiter: int):
         _, residual_vjp = jax.vjp(lambda x, theta: _residual(operator, config, frozen, x, theta),
                                   x, theta)
 
-        lam, _ = gmres(lambda v: residual_vjp(v)[0], x_bar, x0=guess, tol=rtol,
-                       atol=0.0, restart=40, maxiter=maxiter, solve_method="incremental")
+        def by_gmres():
+            lam, _ = gmres(lambda v: residual_vjp(v)[0], x_bar, x0=guess, tol=rtol,
+                           atol=0.0, restart=40, maxiter=maxiter,
+                           solve_method="incremental")
+            return lam
+
+        if config.nd == 0:
+            lam = _normal_adjoint(operator, config, frozen, theta, x_bar, guess, rtol,
+                                  config.max_steps)
+        elif config.nd == 1 and not config.coupled:
+            def by_cg():
+                return _uncoupled_x_adjoint(
+                    operator, config, frozen, theta, x_bar, guess, rtol,
+                    config.max_steps, lambda v: residual_vjp(v)[0])
+
+            if config.tangential_force_control[0]:
+                lam = jax.lax.cond(frozen[3], by_gmres, by_cg)  # gross sliding: GMRES
+            else:
+                lam = by_cg()
+        else:
+            lam = by_gmres()
         theta_bar = residual_vjp(lam)[1]
         theta_bar = jax.tree.map(jnp.negative, theta_bar)
         if theta_extra is not None:
