@@ -109,6 +109,25 @@ def test_partial_slip_gradient_displacement_control():
     _check_against_fd(loss, jnp.array([G / 3, 0.3, 1.0e-6]))
 
 
+def test_partial_slip_gradient_load_control_uncoupled():
+    """Uncoupled partial slip under a ramped tangential LOAD (the conjugate-gradient
+    adjoint of the stick set with the load row, then the normal block) w.r.t. the
+    instantaneous modulus, friction and the tangential load."""
+    grid = jc.Grid((20, 20), 4 * A0)
+    times = jnp.linspace(0.0, 0.02, 3)
+
+    def loss(x, rtol=None):
+        mu_0, friction, force = x
+        material = jc.Zener(mu_inf=G, mu_0=mu_0, tau=0.01, poisson=NU)
+        scene = jc.Scene(grid, jc.Sphere(R), material, times, jc.Force(W),
+                         x=jc.Force(force * jnp.array([0.3, 0.6, 1.0])), friction=friction)
+        sol = jc.solve(scene, rtol=rtol)
+        return (1e6 * jnp.sum(sol.tangential_displacement) + 1e6 * jnp.sum(sol.approach)
+                + 1e-10 * jnp.sum(sol.shear[-1] ** 2))
+
+    _check_against_fd(loss, jnp.array([G / 3, 0.3, 0.5 * 0.3 * W]))
+
+
 def test_coupled_partial_slip_gradient_load_control():
     """Fully coupled normal and tangential load (coupling "full": the y shear is solved
     too) w.r.t. poisson (it drives the coupling), friction and the tangential load."""
