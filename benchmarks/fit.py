@@ -1,0 +1,102 @@
+"""Time to fit a 2-term Prony series through the full contact model (issue 5 target:
+64^2 x 40 steps in under 2 minutes on 2 CPU cores).
+
+Scene: the paper's PMMA (Eq. 28 creep series converted to a relaxation series, true
+shear modulus), rigid sphere R = 3.5 mm, nu = 0.38, a 20 um step indentation held for
+500 s (displacement control), t = 0 then 39 log-spaced times from 0.5 s, grid 1.28 mm
+wide, float64. Synthetic noiseless force from `jc.solve`; `jc.fit_prony(data,
+template, 2)` from its default start (apparent moduli). Reported: wall time of the fit
+including compilation (what a user waits for), Adam / L-BFGS steps, model evaluations,
+final loss, relative error of each parameter.
+
+Usage::
+
+    python benchmarks/fit.py                 # 64^2 x 40
+    python benchmarks/fit.py --n 32 --nt 20
+
+Results go to `benchmarks/results/fit.json`.
+"""
+
+import argparse
+import json
+import os
+import platform
+import time
+from pathlib import Path
+
+import jax
+
+
+jax.config.update("jax_enable_x64", True)
+import jax.numpy as jnp  # noqa: E402
+import numpy as np  # noqa: E402
+
+import jaxcontact as jc  # noqa: E402
+
+
+R, NU = 3.5e-3, 0.38
+
+
+def pmma():
+    """Eq. 28 (1/GPa of 2G) -> relaxation series of the true shear modulus [Pa]."""
+    m = jc.Prony.from_creep(2e-9 * 0.699, 2e-9 * np.array([0.0838, 0.06174]),
+                            np.array([133.869, 9.9404]), NU)
+    order = np.argsort(np.asarray(m.tau))
+    return jc.Prony(m.g_inf, m.g[order], m.tau[order], NU)
+
+
+def params(m):
+    return np.concatenate([[float(m.g_inf)], np.asarray(m.g), np.asarray(m.tau)])
+
+
+def run(n, nt):
+    grid = jc.Grid((n, n), 1280e-6)
+    times = jnp.concatenate([jnp.zeros(1), jnp.geomspace(0.5, 500.0, nt - 1)])
+    delta = jnp.where(times > 0, 20e-6, 0.0)
+    truth = pmma()
+    scene = jc.Scene(grid, jc.Sphere(R), truth, times, normal=jc.Displacement(delta))
+    sol = jc.solve(scene)
+    data = jc.IndentationData(times, force=sol.normal_force, depth=delta)
+    template = jc.Scene(grid, jc.Sphere(R), jc.Elastic(1e9, NU), times,
+                        normal=jc.Displacement(delta))
+    start = time.perf_counter()
+    fit = jc.fit_prony(data, template, 2)
+    elapsed = time.perf_counter() - start
+    err = params(fit.material) / params(truth) - 1
+    return {
+        "n": n, "nt": nt, "fit_s_including_compile": elapsed,
+        "adam_steps": int(fit.adam_steps), "lbfgs_steps": int(fit.lbfgs_steps),
+        "evaluations": int(fit.evaluations), "loss": float(fit.loss),
+        "converged": bool(fit.converged), "message": fit.message,
+        "solves_converged": bool(fit.solves_converged),
+        "relative_errors": {"g_inf": err[0], "g": list(err[1:3]), "tau": list(err[3:5])},
+        "max_relative_error": float(np.max(np.abs(err))),
+    }
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--n", type=int, default=64)
+    parser.add_argument("--nt", type=int, default=40)
+    parser.add_argument("--out", default=str(Path(__file__).parent / "results" / "fit.json"))
+    args = parser.parse_args()
+    load_before = os.getloadavg()
+    case = run(args.n, args.nt)
+    case["relative_errors"] = {k: np.asarray(v).tolist()
+                               for k, v in case["relative_errors"].items()}
+    print(json.dumps(case))
+    result = {
+        "machine": {"platform": platform.platform(), "cpu_count": os.cpu_count(),
+                    "jax": jax.__version__, "device": str(jax.devices()[0]),
+                    "load_average_before": load_before,
+                    "load_average_after": os.getloadavg()},
+        "dtype": "float64",
+        "case": case,
+    }
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    Path(args.out).write_text(json.dumps(result, indent=2))
+    print("wrote", args.out)
+
+
+if __name__ == "__main__":
+    main()
