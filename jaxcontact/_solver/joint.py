@@ -85,7 +85,7 @@ import numpy as np
 
 from .coupled import StepConfig, StepResult
 
-_SIGMA = 0.1  # bound update when the inner residual < sigma x residual at last update
+_SIGMA = 0.3  # bound update when the inner residual < sigma x residual at last update
 # Outside changes smaller than this fraction of (residual x max p) for p, or
 # (residual x max B) for q, are left out of the tracked displacement (certified later).
 _FOLD_P = 1e-3
@@ -94,13 +94,15 @@ _STICK_TOL = 1e-10  # as tangential.py
 _DEBUG = False
 _UPD_RESTART = False  # drop the previous step at bound updates
 _ZIGZAG = True  # cells bound to their disc by the last step are not released at once
-_SET_RESTART = 1  # 1: drop the previous step when an active set changes
+_SET_RESTART = 2  # 1: drop the previous step when an active set changes; 2: only when
+# variables are freed (released slip cells, re-entering cells), as Polonsky-Keer
 # Give up (converged=False, so that `contact_step` falls back to the rounds) when the
 # best residual has not halved for this many iterations: the lagged-bound iteration
 # can cycle on the stick set (seen under displacement control past gross sliding with
 # the total slip law, where the load fix of a load-controlled direction shifts every
 # slip cell back inside its disc). Converging runs halve it every few iterations.
 _STALL = 150
+_Q_GUESS = True  # first step under load control: q proportional to p
 _TRANSPOSED = True  # spectra in (ky, kx) layout inside the loop
 
 
@@ -436,8 +438,14 @@ def joint_solve(
         p_init = jnp.where(jnp.sum(p_init) > 0, p_init, local)
     bound_init = friction * p_init
     sliding_init = sliding_of(p_init)
-    q_init = settle_shear(jnp.asarray(q0, dtype), bound_init, jnp.zeros((nx, ny), bool),
-                          sliding_init)
+    q_init = jnp.asarray(q0, dtype)
+    if any_force and _Q_GUESS:
+        # No shear to start from (a first step): the load-controlled shear in
+        # proportion to the pressure (inside the discs while |F| < mu W).
+        total_p = area * jnp.sum(p_init)
+        ratio = jnp.where(fc, _safe_div(tangential_target, total_p), 0.0)
+        q_init = jnp.where(jnp.any(q_init != 0), q_init, ratio[:, None, None] * p_init[None])
+    q_init = settle_shear(q_init, bound_init, jnp.zeros((nx, ny), bool), sliding_init)
     x_init = jnp.concatenate([p_init[None], q_init])
     u_init, scales_init = exact(x_init)
     ev_init = evaluate(x_init, u_init, scales_init, bound_init, sliding_init)
