@@ -217,7 +217,8 @@ def _timed_once(fn):
     return time.perf_counter() - start, out
 
 
-def speed(sizes=(128, 256), increments=90, repeats=5):
+def speed(sizes=(128, 256), increments=90, repeats=5, methods=("joint", "rounds"),
+          widths=None):
     """Through `jc.solve` (what users run): the coupled Cattaneo-Mindlin step (F_x =
     mu W / 2, coupling "full", one step) over a normal solve (`jc.solve_normal`) on the
     same grid (side 4a), and Spence (105^2 over 2.3 a, mu = 0.2, W in `increments`
@@ -226,9 +227,10 @@ def speed(sizes=(128, 256), increments=90, repeats=5):
     repeats is reported with every time."""
     mat = jc.Elastic(G, NU)
     out = dict(cm=[], spence=None)
-    for n in sizes:
+    widths = [4.0] * len(sizes) if widths is None else widths
+    for n, width in zip(sizes, widths):
         a = float(jc.Hertz(R, W, G, NU).contact_radius)
-        grid = jc.Grid((n, n), 4 * a)
+        grid = jc.Grid((n, n), width * a)
         op_n, op_f = jc.HalfSpace(grid), jc.HalfSpace(grid, "full")
         scene = jc.Scene(grid, jc.Sphere(R), mat, times=jnp.zeros(1), normal=jc.Force(W),
                          x=jc.Force(0.5 * MU * W), friction=MU, coupling="full")
@@ -238,6 +240,7 @@ def speed(sizes=(128, 256), increments=90, repeats=5):
             "joint": lambda: jc.solve(scene, operator=op_f, method="joint"),
             "rounds": lambda: jc.solve(scene, operator=op_f, method="rounds"),
         }
+        fns = {k: f for k, f in fns.items() if k == "normal" or k in methods}
         compile_s, sols = {}, {}
         for k, fn in fns.items():
             compile_s[k], sols[k] = _timed_once(fn)
@@ -246,21 +249,27 @@ def speed(sizes=(128, 256), increments=90, repeats=5):
             for k, fn in fns.items():
                 times[k].append(_timed_once(fn)[0])
         ratio = {k: float(np.median(np.array(times[k]) / np.array(times["normal"])))
-                 for k in ("joint", "rounds")}
-        pj, pr = np.asarray(sols["joint"].pressure), np.asarray(sols["rounds"].pressure)
+                 for k in methods}
         row = dict(
-            n=n, seconds={k: times[k] for k in times}, first_call_s=compile_s,
+            n=n, width_over_a=width, seconds={k: times[k] for k in times},
+            best_s={k: min(times[k]) for k in times}, first_call_s=compile_s,
             median_ratio_over_normal=ratio,
-            iterations={k: int(sols[k].iterations[0]) for k in ("joint", "rounds")},
-            converged={k: bool(sols[k].converged[0]) for k in ("joint", "rounds")},
-            dp_rel=float(np.abs(pj - pr).max() / pr.max()),
+            best_ratio_over_normal={k: min(times[k]) / min(times["normal"])
+                                    for k in methods},
+            iterations={k: int(sols[k].iterations[0]) for k in methods},
+            converged={k: bool(sols[k].converged[0]) for k in methods},
         )
-        print(f"CM n={n}: median coupled/normal joint {ratio['joint']:.1f}x, rounds "
-              f"{ratio['rounds']:.1f}x; best s {min(times['normal']):.3f} / "
-              f"{min(times['joint']):.3f} / {min(times['rounds']):.3f}; "
-              f"it {row['iterations']}; dp {row['dp_rel']:.1e}", flush=True)
+        if "rounds" in methods and "joint" in methods:
+            pj, pr = np.asarray(sols["joint"].pressure), np.asarray(sols["rounds"].pressure)
+            row["dp_rel"] = float(np.abs(pj - pr).max() / pr.max())
+        print(f"CM n={n} width {width}a: median coupled/normal "
+              + ", ".join(f"{k} {ratio[k]:.1f}x" for k in methods)
+              + f"; best s {json.dumps(row['best_s'])}; it {row['iterations']}; "
+              f"first call s {json.dumps(compile_s)}", flush=True)
         out["cm"].append(row)
 
+    if increments <= 0:
+        return out
     n, width, mu = 105, 2.3, 0.2
     a = float(jc.Hertz(R, W, G, NU).contact_radius)
     grid = jc.Grid((n, n), width * a)
@@ -270,11 +279,11 @@ def speed(sizes=(128, 256), increments=90, repeats=5):
                      friction=mu, coupling="full")
     rows = {}
     sols = {}
-    for method in ("joint", "rounds"):
+    for method in methods:
         first, sols[method] = _timed_once(lambda: jc.solve(scene, operator=op_f, method=method))
         rows[method] = dict(first_call_s=first, seconds=[])
     for _ in range(max(1, repeats // 2)):
-        for method in ("joint", "rounds"):
+        for method in methods:
             rows[method]["seconds"].append(
                 _timed_once(lambda: jc.solve(scene, operator=op_f, method=method))[0])
     for method, sol in sols.items():
@@ -285,11 +294,13 @@ def speed(sizes=(128, 256), increments=90, repeats=5):
             iterations_total=int(np.asarray(sol.iterations).sum()),
             rounds_total=int(np.asarray(sol.rounds).sum()),
             all_converged=bool(np.asarray(sol.converged).all()))
-    pj, pr = np.asarray(sols["joint"].pressure), np.asarray(sols["rounds"].pressure)
     out["spence"] = dict(n=n, width_over_a=width, increments=increments, mu=mu,
-                         methods=rows, dp_rel=float(np.abs(pj - pr).max() / pr.max()),
-                         dstick_final=int(np.sum(np.asarray(sols["joint"].stick[-1])
-                                                 != np.asarray(sols["rounds"].stick[-1]))))
+                         methods=rows)
+    if "rounds" in methods and "joint" in methods:
+        pj, pr = np.asarray(sols["joint"].pressure), np.asarray(sols["rounds"].pressure)
+        out["spence"].update(dp_rel=float(np.abs(pj - pr).max() / pr.max()),
+                             dstick_final=int(np.sum(np.asarray(sols["joint"].stick[-1])
+                                                     != np.asarray(sols["rounds"].stick[-1]))))
     print("Spence:", json.dumps(out["spence"]), flush=True)
     return out
 
@@ -302,6 +313,12 @@ def main():
     parser.add_argument("--speed", action="store_true",
                         help="only the jc.solve timings (CM/normal at 128, 256; Spence 90)")
     parser.add_argument("--sizes", type=int, nargs="+", default=[128, 256])
+    parser.add_argument("--widths", type=float, nargs="+", default=None,
+                        help="--speed: grid side / a per size (default 4)")
+    parser.add_argument("--methods", nargs="+", default=["joint", "rounds"],
+                        help="--speed: coupled methods to time (default both)")
+    parser.add_argument("--tag", default="",
+                        help="--speed: suffix of the results file (coupled_speed<tag>.json)")
     parser.add_argument("--increments", type=int, default=90)
     parser.add_argument("--out", default=str(ROOT / "benchmarks/results/joint_vs_rounds.json"))
     args = parser.parse_args()
@@ -312,8 +329,9 @@ def main():
                          device=str(jax.devices()[0]), dtype="float64",
                          note="2 cores shared with other jobs: compare ratios of "
                               "interleaved runs, not absolute seconds"),
-            **speed(tuple(args.sizes), args.increments, args.repeats))
-        out = Path(args.out).with_name("coupled_speed.json")
+            **speed(tuple(args.sizes), args.increments, args.repeats,
+                    tuple(args.methods), args.widths))
+        out = Path(args.out).with_name(f"coupled_speed{args.tag}.json")
         out.write_text(json.dumps(results, indent=2))
         print(f"wrote {out}")
         return

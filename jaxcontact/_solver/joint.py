@@ -340,7 +340,8 @@ def joint_solve(
         `||C K_zz p||` and `||C K_tt q|| + ||b + C K_tz p||_contact` (1.5 applications:
         the p and q parts are transformed back separately)."""
         th = forward(x)
-        up, uq = inverse(k_of_p(th[0])), inverse(k_of_q(th[1:]))
+        both = inverse(jnp.concatenate([k_of_p(th[0]), k_of_q(th[1:])]))
+        up, uq = both[:1 + nd], both[1 + nd:]
         contact = friction * x[0] > 0
         s_n = jnp.sqrt(jnp.sum(up[0] * up[0]))
         s_t = jnp.sqrt(jnp.sum(uq[1:] * uq[1:])) + jnp.sqrt(
@@ -463,9 +464,14 @@ def joint_solve(
         counts=jnp.zeros(4, jnp.int32),
     )
 
+    def exhausted(it, since):
+        return (it >= config.max_steps) | (since >= _STALL)
+
     def cond(s):
-        done = (s["ev"]["residual"] <= rtol) & s["certified"]
-        return ~done & (s["it"] < config.max_steps) & (s["since"] < _STALL)
+        # Leave only from a certified state (exact displacements, bound mu p): the
+        # last iteration before running out forces a bound update.
+        done = (s["ev"]["residual"] <= rtol) | exhausted(s["it"], s["since"])
+        return ~(done & s["certified"])
 
     def body(s):
         x, u, ev, bound, sliding = s["x"], s["u"], s["ev"], s["bound"], s["sliding"]
@@ -564,13 +570,15 @@ def joint_solve(
         x_new = jnp.concatenate([p_new[None], q_new])
 
         # -- the exact displacement of the whole change (one application) -----------
+        # Every `resync_every` iterations, the displacement of x_new itself instead
+        # (against round-off drift; the change's displacement is then the difference).
         d = x_new - x
-        kd = apply(d)
-        u_new = u + kd
         it = s["it"] + 1
         periodic = it % config.resync_every == 0
-        u_new = jax.lax.cond(periodic, lambda: apply(x_new), lambda: u_new)
-        applications = s["applications"] + 1.5 + periodic
+        kt = apply(jnp.where(periodic, x_new, d))
+        u_new = jnp.where(periodic, kt, u + kt)
+        kd = jnp.where(periodic, kt - u, kt)
+        applications = s["applications"] + 1.5
         ev_new = evaluate(x_new, u_new, s["scales"], bound, sliding)
         changed = (jnp.any((p_new > 0) != contact) | jnp.any(ev_new["stick"] != stick)
                    | jnp.any(release) | jnp.any(overlap))
@@ -582,8 +590,9 @@ def joint_solve(
                 jnp.sum(release), jnp.sum(overlap))
 
         # -- outer loop: update the friction bound to mu p, with exact displacements -
+        since = jnp.where(ev_new["residual"] <= 0.5 * s["best"], 0, s["since"] + 1)
         update = (ev_new["residual"] <= _SIGMA * s["res_ref"]) | (
-            ev_new["residual"] <= rtol)
+            ev_new["residual"] <= rtol) | exhausted(it, since)
 
         def new_bound():
             bd = friction * p_new
@@ -616,7 +625,7 @@ def joint_solve(
             s=d, ks=kd, sks=jnp.sum(d * kd), have_prev=~restart,
             it=it, certified=update, updates=s["updates"] + update,
             best=jnp.minimum(s["best"], ev_new["residual"]),
-            since=jnp.where(ev_new["residual"] <= 0.5 * s["best"], 0, s["since"] + 1),
+            since=since,
             applications=applications + 1.5 * update,
             counts=s["counts"] + jnp.stack(
                 [jnp.zeros((), bool), periodic, update, restart]).astype(jnp.int32),
@@ -624,11 +633,10 @@ def joint_solve(
 
     s = jax.lax.while_loop(cond, body, init)
 
-    # ---- Finish: exact displacements, both residuals with the bound mu p -------------
-    x = s["x"]
+    # ---- Finish: the loop ends certified (exact displacements, both residuals with
+    # the bound mu p), so its evaluation is the answer's.
+    x, ev = s["x"], s["ev"]
     p = x[0]
-    u, scales = exact(x)
-    ev = evaluate(x, u, scales, friction * p, sliding_of(p))
     contact = p > 0
     result = StepResult(
         pressure=p, shear=x[1:], approach=ev["dz"], delta_t=ev["dt"],
@@ -637,4 +645,4 @@ def joint_solve(
         iterations=s["it"], rounds=s["updates"], residual=ev["residual"],
         converged=ev["residual"] <= rtol,
     )
-    return result, dict(applications=s["applications"] + 1.5, counts=s["counts"])
+    return result, dict(applications=s["applications"], counts=s["counts"])
