@@ -53,7 +53,20 @@ Notes on the design of `jaxcontact/_solver/joint.py` (what was tried):
 - the step: exact minimisation over span{z_p, z_q, previous step} with Parseval
   quadratic forms (no extra inverse FFT), outside changes folded into the next
   forward transform; this replaced a plain PCG with exact resyncs (about the same
-  iteration count, ~15 % more applications).
+  iteration count, ~15 % more applications);
+- per-iteration cost (issue 3): the nine Parseval inner products over the padded
+  spectra with a broadcast weight ran ~10x slower than plain reductions on XLA:CPU
+  (YNN reduction fusions), and the pending-change `cond` copied spectra: ~10 of ~14
+  ms per iteration at n = 128. Now the whole change of (p, q) after the projections
+  is transformed each iteration (exact displacement, no pending change, no `cond`
+  but the bound update), the direction's three quadratic forms come from one pass
+  over its spectrum with the weights folded into the symbols, and the spectra stay
+  in the (ky, kx) layout of the column FFTs: ~3.5x cheaper per iteration;
+- iterations: restart only when variables are freed (as Polonsky-Keer), bound
+  update at sigma = 0.3, first-step shear proportional to p under load control,
+  slip cells kept on their discs after each step, and the load fix without stick
+  cells moving cells along their discs (this also removed the one known failure,
+  displacement control past gross sliding with a load-controlled direction).
 """
 
 import argparse

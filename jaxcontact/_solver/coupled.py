@@ -260,9 +260,7 @@ def contact_step(
             tangential_target, previous_slip)
     if config.nd == 0 or not config.coupled:
         return _rounds_step(*args, p0, q0, normal_guess=normal_guess)
-    # TODO(joint owner): the joint solver does not converge in float32 (residual stays
-    # ~5e-2 at n = 32; cause not found yet), so float32 steps take the rounds.
-    if config.method == "joint" and jnp.finfo(h0.dtype).bits >= 64:
+    if config.method == "joint":
         from .joint import joint_step  # joint.py imports StepConfig/StepResult from here
 
         res = joint_step(*args, p0, q0, normal_guess=normal_guess)
@@ -327,7 +325,7 @@ def _load_by_displacement(operator, config, compliance, poisson, friction, h0, h
                 normal_target, targets, previous_slip)
         # One solver per evaluation (no nested fallback: compile time); a failed
         # evaluation still steers the bracket but cannot be the answer.
-        if config.method == "joint" and jnp.finfo(h0.dtype).bits >= 64:
+        if config.method == "joint":
             from .joint import joint_step
 
             r = joint_step(*args, start.pressure, start.shear, normal_guess=start.pressure)
