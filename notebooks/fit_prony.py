@@ -1,4 +1,4 @@
-# slow (compiles the contact model and its adjoint: ~1 min on 2 loaded cores at ci size)
+# slow (~1-2 min at ci size: the model and its adjoint; CI fits in tests/test_fit.py)
 # %% [markdown]
 # # Fitting a Prony series to an indentation test
 #
