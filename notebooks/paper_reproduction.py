@@ -21,9 +21,10 @@
 # Compilation dominates at small sizes: JAX compiles one solver program per kind of
 # scene (material type, which loads are forces or displacements, coupling, grid
 # shape, number of time points). `solve` below writes every load program as an
-# array and a missing tangential input as a zero force (the same physics), so the 30
-# scenes here need eight programs; with one number of time points for all of them at
-# `ci` size, each program compiles once.
+# array and a missing tangential input as a zero force (the same physics). At `ci`
+# size every scene has 9 time points, so the 21 scenes need seven programs (Maxwell,
+# Prony, Zener, and four frictional ones: force / displacement in x, held load /
+# held approach, semi-coupled), each compiled once.
 
 # %%
 import os

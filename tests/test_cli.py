@@ -2,8 +2,9 @@
 
 Called in-process through `main([...])` (exit status returned) at tiny sizes; one
 subprocess call checks the real exit status of `python -m jaxcontact`. The zener runs
-use the same scene shape as tests/test_presets.py (n = 24, 7 time points), so within
-one pytest session they share its compiled program.
+(preset and scene file: n = 24, 7 time points) share one compiled program; the CLI's
+progress report (`jc.solve(progress=True)`) makes it a different one from
+tests/test_presets.py's.
 """
 
 import json
@@ -97,9 +98,13 @@ def test_run_hertz_float32(tmp_path, capsys):
 def test_run_preset_writes_npz_metadata_and_plots(tmp_path, capsys):
     argv = ["run", "zener", "--n", "24", "--steps", "7", "--out", str(tmp_path)]
     assert main(argv) == 0
-    out = capsys.readouterr().out
+    captured = capsys.readouterr()
+    out = captured.out
     assert "7/7 steps converged" in out
-    assert "step" in out and "stick" in out  # the per-step progress table
+    assert "step" in out and "stick" in out  # the per-step table at the end
+    # Live progress on stderr as the steps complete: the first and the last step.
+    assert "jaxcontact: step 1/7" in captured.err
+    assert "jaxcontact: step 7/7" in captured.err
     arrays, meta = _load(tmp_path / "zener.npz")
     assert meta["preset"] == "zener"
     assert meta["parameters"]["n"] == 24 and meta["parameters"]["steps"] == 7

@@ -591,6 +591,11 @@ def compare_with_dense(sol, ref, mu):
     return dp, dq, n_diff
 
 
+# Redundant in the default run: the coupled operator equals the dense convolution
+# (test_operator, 1e-12), the coupled ramps meet Coulomb and complementarity cell by
+# cell (test_coulomb_conditions_pointwise), and the uncoupled FFT solve equals the
+# dense one (test_dense_reference_cattaneo_mindlin).
+@pytest.mark.slow  # redundant: see the comment above
 def test_dense_reference_coupled_ramp():
     """Full coupling, nu = 0.3, mu = 0.3, W ramped in 10 increments, n = 24 over 2.5 a:
     the FFT solver (rtol = 1e-10) and the dense reference (PDAS + FISTA, tol = 1e-10)

@@ -23,6 +23,8 @@ def test_progress_callback_sees_every_step_in_order_and_changes_nothing():
     np.testing.assert_array_equal(np.asarray(plain.pressure), np.asarray(reported.pressure))
 
 
+# Redundant: tests/test_cli.py asserts the same stderr lines (CLI: progress=True).
+@pytest.mark.slow  # redundant with tests/test_cli.py's progress check
 def test_progress_true_prints_to_stderr(capfd):
     sol = jc.solve(_scene(), progress=True)
     jax.block_until_ready(sol.pressure)

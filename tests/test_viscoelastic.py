@@ -721,6 +721,8 @@ def constant_input_case(kind):
     return grid, np.asarray(times), scene, as_np(jc.solve(scene))
 
 
+# The default run keeps LC through notebooks/paper_reproduction.py (ci size).
+@pytest.mark.slow  # LC: paper_reproduction notebook asserts F_x = 0.5 mu W
 def test_constant_tangential_load_creeps():
     """LC (creep in x). The paper's Fig. 16: F_x constant, contact and stick areas grow.
     Ours: F_x = 0.5 mu W to 1e-6 at every step (load control); contact area never
@@ -746,6 +748,8 @@ def test_constant_tangential_load_creeps():
     )
 
 
+# The default run keeps DC through notebooks/paper_reproduction.py (ci size).
+@pytest.mark.slow  # DC: paper_reproduction notebook asserts F_x relaxes
 def test_constant_tangential_displacement_relaxes():
     """DC (relaxation in x). The paper's Fig. 16a: F_x relaxes. Ours: delta_x fixed; F_x
     decreases monotonically from 0.5 mu W to 0.125 mu W, i.e. by the factor
@@ -784,6 +788,8 @@ def test_constant_tangential_displacement_relaxes():
     )
 
 
+# The default run keeps REL through notebooks/paper_reproduction.py (ci size).
+@pytest.mark.slow  # REL: notebook asserts F_x / mu W, stick pattern constant
 def test_constant_displacements_relax_self_similarly():
     """REL (paper Fig. 21: "the ratio of the tangential load to the static friction
     remains constant"; the stick/slip pattern is time-independent). Exact for the

@@ -2,6 +2,7 @@
 
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 import jaxcontact as jc
 
@@ -18,6 +19,8 @@ def test_table1_conversion_gives_paper_a0_p0():
     assert abs(float(hz.peak_pressure) / 3487e6 - 1) < 1e-3
 
 
+# Redundant: test_viscoelastic's Maxwell radius / profile vs Lee-Radok tests (quick).
+@pytest.mark.slow  # redundant with test_viscoelastic's Maxwell tests
 def test_lee_radok_maxwell_contact_radius_and_spike():
     n = 96
     grid = jc.Grid((n, n), 512e-6)
@@ -73,6 +76,9 @@ def test_relaxation_force_follows_relaxation_modulus():
     assert abs(ratio[-1] / relaxed - 1) < 1e-3
 
 
+# Redundant: test_viscoelastic::test_recursive_and_direct_history_agree_through_full_
+# solves (quick); the recursion treats the 3 traction components alike.
+@pytest.mark.slow  # redundant: recursion vs direct sum, quick in test_viscoelastic
 def test_recursive_and_direct_history_agree_through_solves():
     material = jc.Prony(g_inf=1.93e6, g=jnp.array([3.86e6, 1e6]), tau=jnp.array([0.1, 0.02]),
                         poisson=0.3)
@@ -89,6 +95,9 @@ def test_recursive_and_direct_history_agree_through_solves():
     np.testing.assert_allclose(rec.approach, direct.approach, rtol=1e-7)
 
 
+# Redundant: test_viscoelastic::test_zener_without_creep_equals_elastic (to 1e-12) and
+# test_properties::test_zener_with_equal_moduli_is_elastic (quick).
+@pytest.mark.slow  # redundant: Zener mu_0 = mu_inf is elastic, quick elsewhere
 def test_zener_without_relaxation_is_elastic():
     grid = jc.Grid((40, 40), 3e-3)
     times = jnp.linspace(0.0, 1.0, 5)
