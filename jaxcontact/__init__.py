@@ -34,6 +34,7 @@ from ._subsurface import subsurface_stress as subsurface_stress
 from ._solver.normal import PolonskyKeer as PolonskyKeer
 from . import presets as presets
 from ._validate import EdgeContactWarning as EdgeContactWarning
+from ._validate import TimeStepWarning as TimeStepWarning
 
 
 __version__ = "0.1.0"

@@ -31,6 +31,7 @@ Schemes (all carry the traction of the previous step):
 from typing import NamedTuple
 
 import jax.numpy as jnp
+import numpy as np
 
 
 class StepHistory(NamedTuple):
@@ -114,3 +115,29 @@ class DirectHistory:
 
     def update(self, buffer, tau_prev, tau_new, k, dt):
         return buffer.at[k].set(tau_new - tau_prev)
+
+
+def constant_scheme_amplification(series, dt: float) -> float:
+    """Spectral radius of the step-to-step map of the piecewise-constant scheme over
+    a step `dt`, for a creep series with concrete values (NumPy, not traced).
+
+    Holding the displacement of a linear body fixed, `sum_n J(t_k - t_n) dp_n` is the
+    same at every step; differencing consecutive steps gives `J_g dp_k = -sum_i c_i
+    S_i(k)` with `S_i(k+1) = q_i S_i(k) + dp_k`, `q_i = exp(-dt / lambda_i)`,
+    `c_i = J_i (1 - q_i)` (a fluid term adds `q = 1`, `c = f dt`). So `S` evolves by
+    `M = diag(q) - 1 c^T / J_g`; for one arm its eigenvalue is `1 - (J_inf / J_g)
+    (1 - q)`. A radius above 1 is an alternating mode that grows from step to step:
+    the scheme is then unstable (the contact problem oscillates instead of creeping).
+    The piecewise-linear scheme has no such limit.
+    """
+    glassy = float(series.glassy)
+    strengths = np.asarray(series.strengths, np.float64)
+    q = np.exp(-dt / np.asarray(series.times, np.float64))
+    c = strengths * (1 - q)
+    fluidity = float(series.fluidity)
+    if fluidity > 0:
+        q, c = np.append(q, 1.0), np.append(c, fluidity * dt)
+    if q.size == 0:
+        return 0.0
+    m = np.diag(q) - np.outer(np.ones_like(q), c) / glassy
+    return float(np.max(np.abs(np.linalg.eigvals(m))))

@@ -1,13 +1,17 @@
 """`jc.solve`: the entry point. Time stepping over the scene's `times` with `lax.scan`."""
 
 import sys
+import warnings
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from . import _validate
-from ._history import DirectHistory, ElasticHistory, RecursiveHistory
+from ._history import (
+    DirectHistory, ElasticHistory, RecursiveHistory, constant_scheme_amplification,
+)
 from ._loading import Force
 from ._material.elastic import Elastic
 from ._operator import HalfSpace
@@ -140,6 +144,26 @@ def _solve(scene: Scene, operator: HalfSpace, config: StepConfig, history_kind: 
     )
 
 
+def _warn_unstable_steps(material, times):
+    """`jc.TimeStepWarning` when a step makes the piecewise-constant scheme unstable
+    (`_history.constant_scheme_amplification` > 1). Concrete inputs with a creep
+    series only: nothing is checked inside a transformation."""
+    series = getattr(material, "creep_series", None)
+    if (series is None or isinstance(material, Elastic) or times.shape[0] < 2
+            or _validate.is_traced(times) or _validate.is_traced(material)):
+        return
+    steps = np.unique(np.diff(np.asarray(times, np.float64)))
+    series = series()
+    radius, worst = max((constant_scheme_amplification(series, float(dt)), float(dt))
+                        for dt in steps)
+    if radius > 1.0:
+        warnings.warn(
+            f"a time step of {worst:.3g} is too long for the piecewise-constant scheme "
+            f"with this material (its step-to-step amplification is {radius:.3g} > 1): "
+            f'the solution oscillates from step to step. Use scheme="linear" or '
+            f"shorter steps.", _validate.TimeStepWarning, stacklevel=3)
+
+
 def solve(
     scene: Scene,
     *,
@@ -203,6 +227,8 @@ def solve(
         raise ValueError(f'scheme must be "constant" or "linear", got {scheme!r}')
     if rtol is not None:
         _validate.tolerance("rtol", rtol)
+    if scheme == "constant":
+        _warn_unstable_steps(scene.material, scene.times)
     if operator is not None:
         if not isinstance(operator, HalfSpace):
             raise TypeError(f"operator must be a jc.HalfSpace, got {operator!r}")

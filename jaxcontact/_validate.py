@@ -100,6 +100,17 @@ def tolerance(name: str, value) -> float:
     return float(value)
 
 
+class TimeStepWarning(UserWarning):
+    """A time step is too long for the piecewise-constant (paper's) time scheme.
+
+    With tractions piecewise constant in time, the step-to-step update has an
+    alternating mode that grows when `dt` is long against the material's retardation
+    times (one arm: when `(J_inf / J_0) (1 - exp(-dt / lambda)) > 2`). The approach and
+    the contact radius then oscillate from step to step instead of creeping, although
+    every step converges. Use `scheme="linear"` (stable for any step) or shorter steps.
+    """
+
+
 class EdgeContactWarning(UserWarning):
     """The contact reaches (or is expected to reach) the edge of a non-periodic grid.
 
