@@ -71,6 +71,7 @@ Notes on the design of `jaxcontact/_solver/joint.py` (what was tried):
 
 import argparse
 import json
+import os
 import platform
 import sys
 import time
@@ -341,7 +342,8 @@ def main():
                          python=platform.python_version(), jax=jax.__version__,
                          device=str(jax.devices()[0]), dtype="float64",
                          note="2 cores shared with other jobs: compare ratios of "
-                              "interleaved runs, not absolute seconds"),
+                              "interleaved runs, not absolute seconds",
+                         load_average_before=os.getloadavg()),
             **speed(tuple(args.sizes), args.increments, args.repeats,
                     tuple(args.methods), args.widths))
         out = Path(args.out).with_name(f"coupled_speed{args.tag}.json")
