@@ -5,7 +5,8 @@ mu_inf = 1.93 MPa, mu_inf / mu_0 = 4, tau = 0.01 s, nu = 0.3, domain 4 a):
 
 - `normal`: frictionless creep indentation, n^2 grid x nt steps;
 - `slip`: the same with mu = 0.3 and a tangential displacement ramped over the
-  history (coupling "none": partial slip in x).
+  history (coupling "none": partial slip in x);
+- `coupled`: `slip` with coupling "full" (p, q_x, q_y interact; GMRES adjoint).
 
 For each: forward time (`jc.solve`, jitted, after compilation, best of repeats), gradient
 time (`jax.grad` of a scalar of the solution w.r.t. (mu_0, tau, poisson, W), jitted,
@@ -51,6 +52,9 @@ def make_loss(n, nt, kind):
         extra = {}
         if kind == "slip":
             extra = dict(x=jc.Displacement(1.5e-6 * times / times[-1]), friction=0.3)
+        elif kind == "coupled":
+            extra = dict(x=jc.Displacement(1.5e-6 * times / times[-1]), friction=0.3,
+                         coupling="full")
         return jc.Scene(grid, jc.Sphere(R), material, times, jc.Force(load * ramp), **extra)
 
     def forward(params):
