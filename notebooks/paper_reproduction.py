@@ -699,13 +699,12 @@ for figure, paper, ours in SUMMARY:
 #   compliance grows linearly, but delta = a^2 / R with a^3 proportional to J, so
 #   delta grows as (1 + t / tau)^(2/3), whose rate at 6 tau is 7^(-1/3) = 0.52 x the
 #   initial one. The paper's statement is about J(t), not about delta(t).
-# - Fig. 12, 64 x 64 (61 and 121 points): PMMA as in the paper (creep x1.17, the
-#   maximum at the centre throughout). The fictitious material creeps x3.23, but we
-#   did not see its edge spikes as a global maximum: the maximum stays within 0.08
-#   a(t) of the centre at every step. A smaller off-centre local maximum may still
-#   be there: its measure (`edge_rise`, printed above) came after that run, and we
-#   have not measured it at 64 x 64. We do not know why the paper sees spikes: its ratio
-#   (~5) lies between our ratios 4 (no spike) and 8 (spike) of Fig. 8.
+# - Fig. 12, 64 x 64 (61 and 121 points): as in the paper. PMMA creeps x1.17 and
+#   its pressure stays monotone from the centre out (edge rise 0 at every step). The
+#   fictitious material creeps x3.23 and shows a transient edge spike: an off-centre
+#   local maximum rising 0.073 p_max above the profile's minimum at t = 85 s, gone
+#   (0) by 600 s. It is a LOCAL maximum: the global one stays within 0.08 a(t) of the
+#   centre at every step (a measure of the peak position alone would miss it).
 # - Figs. 13-15, 64 x 64, 81 points: as in the paper, partial slip at every step and a
 #   stick ratio insensitive to mu_inf / mu_0 (0.261-0.296 for ratio 3, 0.265-0.291
 #   for ratio 10).
