@@ -4,6 +4,8 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
+from . import _validate
+
 
 class Hertz(eqx.Module):
     """Hertz contact of a rigid sphere (paraboloid) on an elastic half-space.
@@ -20,6 +22,13 @@ class Hertz(eqx.Module):
     force: Float[Array, ""]
     shear_modulus: Float[Array, ""]
     poisson: Float[Array, ""]
+
+    def __init__(self, radius, force, shear_modulus, poisson):
+        # Arrays broadcast (e.g. a Hertz solution per load); bad values raise here.
+        self.radius = _validate.positive("radius", radius)
+        self.force = _validate.non_negative("force", force)
+        self.shear_modulus = _validate.positive("shear_modulus", shear_modulus)
+        self.poisson = _validate.poisson_ratio("poisson", poisson)
 
     @property
     def effective_modulus(self):

@@ -180,6 +180,8 @@ class HalfSpace(eqx.Module):
     spectra: dict[str, Float[Array, "kx ky"]]
 
     def __init__(self, grid: Grid, coupling: Coupling = "normal", tangential_y: bool = True):
+        if not isinstance(grid, Grid):
+            raise TypeError(f"grid must be a jc.Grid, got {grid!r}")
         if coupling not in _COUPLINGS:
             raise ValueError(f"coupling must be one of {_COUPLINGS}, got {coupling!r}")
         self.grid = grid

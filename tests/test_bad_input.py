@@ -433,3 +433,26 @@ def test_error_if_is_used_for_traced_values():
 
     out = eqx.filter_jit(build)(1.0, 0.3, 0.2, 1.0, 0.01)
     assert float(out) == pytest.approx(0.2 + 0.5 + 1.0)
+
+
+class TestHertzAndHalfSpace:
+    @pytest.mark.parametrize("args, name, shown", [
+        ((-1e-2, 0.15, 1e6, 0.3), "radius", "-0.01"),
+        ((1e-2, -0.15, 1e6, 0.3), "force", "-0.15"),
+        ((1e-2, 0.15, 0.0, 0.3), "shear_modulus", "0.0"),
+        ((1e-2, 0.15, 1e6, 0.7), "poisson", "0.7"),
+        ((1e-2, NAN, 1e6, 0.3), "force", "nan"),
+    ])
+    def test_hertz_rejects_bad_values(self, args, name, shown):
+        with pytest.raises(ValueError, match=rf"{name}.*{re.escape(shown)}"):
+            jc.Hertz(*args)
+
+    def test_hertz_broadcasts_arrays(self):
+        # a^3 is linear in W: one Hertz object per array of loads.
+        h = jc.Hertz(1e-2, jnp.array([0.1, 0.8]), 1e6, 0.3)
+        np.testing.assert_allclose(float(h.contact_radius[1] / h.contact_radius[0]), 2.0,
+                                   rtol=1e-12)
+
+    def test_half_space_needs_a_grid(self):
+        with pytest.raises(TypeError, match=r"grid must be a jc.Grid.*\(8, 8\)"):
+            jc.HalfSpace((8, 8))
