@@ -1,4 +1,3 @@
-# slow (~1-2 min at ci size: the model and its adjoint; CI fits in tests/test_fit.py)
 # %% [markdown]
 # # Fitting a Prony series to an indentation test
 #

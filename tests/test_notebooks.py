@@ -17,7 +17,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 NOTEBOOKS = sorted((ROOT / "notebooks").glob("*.py"))
 # The notebooks of tests/test_notebooks.py's owner save figures; others may not.
-SAVE_FIGURES = {"quickstart", "paper_reproduction", "parameter_sweep"}
+SAVE_FIGURES = {"quickstart", "paper_reproduction", "parameter_sweep", "fit_prony"}
 
 
 def _is_slow(path: Path) -> bool:
