@@ -1,3 +1,4 @@
+# slow (~30-60 s at ci size, kept out of the default run for the CI time budget; test_fit.py covers the same path)
 # %% [markdown]
 # # Fitting a Prony series to an indentation test
 #
