@@ -24,8 +24,11 @@ rows dimensionless: they do not change the root, only the conditioning). By the
 implicit function theorem `dx/dtheta = -(dF/dx)^-1 dF/dtheta`, so the vector-Jacobian
 product of a cotangent `x_bar` is `theta_bar = -(dF/dtheta)^T lambda` with the ADJOINT
 solve `(dF/dx)^T lambda = x_bar`: one linear solve with the same FFT operator
-(GMRES, matrix-free through `jax.vjp` of `F`; the operator is symmetric so the adjoint
-costs what the forward application costs). Nothing of the CG iterations is stored.
+(the operator is symmetric, so a transposed application costs what a forward one
+does). Frictionless and uncoupled x-only steps solve it by projected conjugate
+gradients on the contact / stick set (`_set_adjoint`); the others (coupling, 2-D slip,
+gross sliding under load control) by GMRES, matrix-free through `jax.vjp` of `F`.
+Nothing of the forward CG iterations is stored.
 
 The derivative is that of the solution on its current active sets: exact away from
 active-set changes (a cell entering or leaving contact or the stick zone), where the
@@ -229,10 +232,9 @@ def _uncoupled_x_adjoint(operator, config, frozen, theta, x_bar, guess, rtol, ma
     contact, stick, kt = frozen[0], frozen[1], frozen[5]
     compliance, poisson = theta[0], theta[1]
     p_bar, q_bar, dz_bar, dt_bar = x_bar
-    xx, _, _ = operator.tangential_blocks(poisson)
 
     def a_full(v):
-        return (compliance / kt) * operator.inverse(xx * operator.forward(v))
+        return (compliance / kt) * operator.apply_tangential(v[None], poisson)[0]
 
     lam_q, lam_dt = _set_adjoint(
         a_full, stick, config.tangential_force_control[0], _area_scale(operator, contact),
@@ -334,7 +336,8 @@ def differentiable_step(
 
     **Returns:** `(StepResult, seed)`, the seed to pass to the next step.
     `adjoint_rtol` (default: the step's `rtol`) and `adjoint_maxiter` (GMRES restarts
-    of 40 iterations) bound the adjoint solve.
+    of 40 iterations; the conjugate-gradient adjoints are bounded by
+    `config.max_steps`) bound the adjoint solve.
     """
     sg = jax.lax.stop_gradient
     res = contact_step(
