@@ -213,6 +213,18 @@ class HalfSpace(eqx.Module):
         field = jnp.fft.ifft(spec, axis=-2)[..., :nx, :]
         return jnp.fft.irfft(field, n=2 * ny, axis=-1)[..., :ny]
 
+    def diagonal(self, spectrum) -> Float[Array, ""]:
+        """Diagonal entry of the convolution with a real, even `spectrum` (its kernel at
+        zero offset: the mean of the full spectrum, the half-spectrum weighted)."""
+        nx, ny = self.grid.shape
+        full_ny = ny if self.grid.periodic else 2 * ny
+        m = spectrum.shape[-1]
+        weights = jnp.full((m,), 2.0, spectrum.dtype).at[0].set(1.0)
+        if full_ny % 2 == 0:
+            weights = weights.at[m - 1].set(1.0)
+        full_nx = spectrum.shape[-2]
+        return jnp.sum(spectrum * weights[None, :]) / (full_nx * full_ny)
+
     # -- application -----------------------------------------------------------------
 
     def normal_spectrum(self, poisson):

@@ -172,6 +172,7 @@ def solve(
     max_rounds: int = 100,
     resync_every: int = 25,
     method: str = "joint",
+    precondition: bool = True,
     history: str = "auto",
     scheme: str = "constant",
     operator: HalfSpace | None = None,
@@ -195,6 +196,9 @@ def solve(
       `"rounds"` (alternating normal and tangential solves). Either falls back to the
       other safeguards of `_solver/coupled.py` when it fails; uncoupled steps always
       take one round (exact).
+    - `precondition`: precondition the normal CG solves with the full-plane inverse
+      of the operator (default `True`; see `jc.PolonskyKeer`). `False`: plain
+      Polonsky-Keer.
     - `history`: `"auto"` (default: none for an elastic material, the O(Nt) recursion
       for a material with a creep series, the direct sum otherwise), `"recursive"` or
       `"direct"` (the O(Nt^2) sum of the paper, Eqs. 12-13; a reference).
@@ -219,6 +223,8 @@ def solve(
     for name, value in (("max_steps", max_steps), ("max_rounds", max_rounds),
                         ("resync_every", resync_every)):
         _validate.positive_int(name, value)  # TypeError / ValueError naming it
+    if not isinstance(precondition, bool):
+        raise TypeError(f"precondition must be a bool, got {precondition!r}")
     if method not in ("joint", "rounds"):
         raise ValueError(f'method must be "joint" or "rounds", got {method!r}')
     if history not in ("auto", "recursive", "direct"):
@@ -261,6 +267,7 @@ def solve(
         max_rounds=max_rounds,
         resync_every=resync_every,
         method=method,
+        precondition=precondition,
     )
     if operator is None:
         operator = _operator_for(scene, nd)

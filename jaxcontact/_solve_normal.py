@@ -13,7 +13,9 @@ from ._material.base import AbstractMaterial
 from ._loading import Displacement, Force
 from ._operator import HalfSpace
 from ._solution import edge_ring
-from ._solver.normal import PolonskyKeer, hertzian_guess, polonsky_keer
+from ._solver.normal import (
+    PolonskyKeer, hertzian_guess, inverse_preconditioner, polonsky_keer,
+)
 
 
 class NormalSolution(eqx.Module):
@@ -57,6 +59,10 @@ def _solve(operator, h, compliance, poisson, target, load_control, solver):
     def apply_fn(p):
         return operator.inverse(operator.forward(p) * spectrum)
 
+    precondition = None
+    if solver.precondition:
+        precondition = inverse_preconditioner(operator, operator.normal_spectrum(poisson))
+
     p0 = None
     if load_control:
         effective_modulus = 2 / (compliance * (1 - poisson))
@@ -72,6 +78,8 @@ def _solve(operator, h, compliance, poisson, target, load_control, solver):
         max_steps=solver.max_steps,
         resync_every=solver.resync_every,
         p0=p0,
+        precondition=precondition,
+        self_compliance=operator.diagonal(spectrum),
     )
     return NormalSolution(
         pressure=state.pressure,

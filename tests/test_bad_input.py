@@ -295,6 +295,7 @@ class TestSolve:
             (dict(rtol=NAN), ValueError, ("rtol", "nan")),
             (dict(rtol="1e-8"), TypeError, ("rtol", "'1e-8'")),
             (dict(history="fast"), ValueError, ("history", "'fast'")),
+            (dict(precondition=1), TypeError, ("precondition", "1")),
             (dict(scheme="cubic"), ValueError, ("scheme", "'cubic'")),
             (dict(operator="fft"), TypeError, ("operator", "'fft'")),
         ],
@@ -356,6 +357,7 @@ class TestSolveNormal:
             (dict(max_steps=0), ValueError, ("max_steps", "0")),
             (dict(max_steps=2.5), ValueError, ("max_steps", "2.5")),
             (dict(resync_every=0), ValueError, ("resync_every", "0")),
+            (dict(precondition="yes"), TypeError, ("precondition", "'yes'")),
         ],
     )
     def test_polonsky_keer_options(self, kwargs, exc, fragments):

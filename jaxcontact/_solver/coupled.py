@@ -39,7 +39,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
-from .normal import polonsky_keer
+from .normal import inverse_preconditioner, polonsky_keer
 from .tangential import TangentialState, tangential_cg
 
 
@@ -71,6 +71,8 @@ class StepConfig(NamedTuple):
     # Coupled steps: "joint" (joint projected CG, `joint.py`) or "rounds" (block
     # Gauss-Seidel normal/tangential rounds). Ignored without coupling (one round).
     method: str = "joint"
+    # Normal CG solves: preconditioned by the full-plane inverse (`normal.py`).
+    precondition: bool = True
 
 
 def _rounds_step(
@@ -100,11 +102,16 @@ def _rounds_step(
     def apply_normal(p):
         return operator.inverse(operator.forward(p) * nn_spec)
 
+    precondition = None
+    if config.precondition:
+        precondition = inverse_preconditioner(operator, operator.normal_spectrum(poisson))
+
     def solve_normal(h_eff, p_start):
         return polonsky_keer(
             apply_normal, h_eff, normal_target, area,
             load_control=config.normal_force_control, rtol=config.rtol,
             max_steps=config.max_steps, resync_every=config.resync_every, p0=p_start,
+            precondition=precondition, self_compliance=operator.diagonal(nn_spec),
         )
 
     if nd == 0:

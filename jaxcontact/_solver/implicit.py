@@ -51,27 +51,14 @@ def _displacements(operator, config: StepConfig, compliance, poisson, p, q):
     return u[2], u[: config.nd]
 
 
-def _spectrum_diagonal(operator, spectrum):
-    """Diagonal entry of the convolution with a real, even `spectrum` (its kernel at
-    zero offset: the mean of the full spectrum, the half-spectrum weighted)."""
-    nx, ny = operator.grid.shape
-    full_ny = ny if operator.grid.periodic else 2 * ny
-    m = spectrum.shape[-1]
-    weights = jnp.full((m,), 2.0, spectrum.dtype).at[0].set(1.0)
-    if full_ny % 2 == 0:
-        weights = weights.at[m - 1].set(1.0)
-    full_nx = spectrum.shape[-2]
-    return jnp.sum(spectrum * weights[None, :]) / (full_nx * full_ny)
-
-
 def _self_compliance(operator, config, compliance, poisson):
     """`(k_z, k_t)`: normal and tangential displacement of a cell under its own unit
     traction (positive scalars, used only to scale the residual rows)."""
-    kz = compliance * _spectrum_diagonal(operator, operator.normal_spectrum(poisson))
+    kz = compliance * operator.diagonal(operator.normal_spectrum(poisson))
     if config.nd == 0:
         return kz, kz
     xx, _, _ = operator.tangential_blocks(poisson)
-    return kz, compliance * _spectrum_diagonal(operator, xx)
+    return kz, compliance * operator.diagonal(xx)
 
 
 def _residual(operator, config, frozen, x, theta):

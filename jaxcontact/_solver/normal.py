@@ -24,6 +24,16 @@ Differences from the textbook algorithm (Polonsky & Keer 1999, Wear 231, 206-219
   `p`: `residual = ||gap violation||_2 / ||u||_2`, where the violation is the gap on
   contact cells and the penetration `min(g, 0)` elsewhere. Under load control the load
   balance holds exactly at every iteration (the pressure is rescaled).
+- Preconditioned (optional, the default in `jc.solve_normal` and `jc.solve`): the
+  search direction is built from `z = M g` instead of the gap `g`, where `M` applies
+  the INVERSE of the full-plane operator (`1 / spectrum` on the same padded FFT grid:
+  one more FFT pair per iteration), restricted to the contact set and, under load
+  control, made mean-free on it. The operator restricted to a contact disc of `m`
+  cells across has a condition number growing like `m` (its symbol is `1 / |k|`);
+  `M` removes that growth up to edge effects. Measured (256^2 Hertz, float64, rtol
+  1e-8): 31 -> 7 iterations, 41 -> 20 FFT pairs; a 150-step creep history: 4694 ->
+  897 iterations. The idea is Vollebregt's (2014), whose CONTACT uses an FFT-based
+  preconditioner for its normal CG solver; his also adds deflation.
 - Bounded: at most `max_steps` iterations; a solve that does not reach `rtol` is
   returned with `converged=False`, never silently.
 """
@@ -48,16 +58,25 @@ class PolonskyKeer(eqx.Module):
     - `resync_every`: recompute the displacement exactly every this many iterations
       (default 25).
 
+    - `precondition`: build the search directions from the full-plane inverse of the
+      operator (default `True`: about 4x fewer iterations for half the FFT pairs;
+      see the module docs). `False` is the textbook algorithm.
+
     ??? cite "References"
 
         Polonsky, I. A. & Keer, L. M. (1999). A numerical method for solving rough
         contact problems based on the multi-level multi-summation and conjugate gradient
         techniques. Wear 231, 206-219.
+
+        Vollebregt, E. A. H. (2014). A new solver for the elastic normal contact problem
+        using conjugate gradients, deflation, and an FFT-based preconditioner. J.
+        Comput. Phys. 257, 333-351.
     """
 
     rtol: float | None = eqx.field(static=True, default=None)
     max_steps: int = eqx.field(static=True, default=2000)
     resync_every: int = eqx.field(static=True, default=25)
+    precondition: bool = eqx.field(static=True, default=True)
 
     def __check_init__(self):
         if self.rtol is not None and not (0 < self.rtol < 1):
@@ -68,11 +87,27 @@ class PolonskyKeer(eqx.Module):
             raise ValueError(
                 f"resync_every must be a positive integer, got {self.resync_every!r}"
             )
+        if not isinstance(self.precondition, bool):
+            raise TypeError(f"precondition must be a bool, got {self.precondition!r}")
 
     def tolerance(self, dtype) -> float:
         if self.rtol is not None:
             return self.rtol
         return 1e-8 if jnp.finfo(dtype).bits >= 64 else 1e-5
+
+
+def inverse_preconditioner(operator, spectrum):
+    """`g -> F^-1[F[g] / spectrum]` on the operator's (padded) FFT grid: the full-plane
+    inverse of the convolution with the real, even `spectrum` (any positive scale).
+    Entries at or below `1e-12` of the largest (the zero mode of a periodic grid, whose
+    mean displacement is set to zero) are dropped rather than inverted."""
+    floor = 1e-12 * jnp.max(jnp.abs(spectrum))
+    inverse = jnp.where(spectrum > floor, 1 / jnp.where(spectrum > floor, spectrum, 1), 0)
+
+    def apply(g):
+        return operator.inverse(operator.forward(g) * inverse)
+
+    return apply
 
 
 def hertzian_guess(h, load, effective_modulus, cell_area, steps: int = 60):
@@ -158,6 +193,8 @@ def polonsky_keer(
     max_steps: int,
     resync_every: int = 25,
     p0: Float[Array, "nx ny"] | None = None,
+    precondition=None,
+    self_compliance=None,
 ) -> NormalState:
     """Solve the normal contact problem (see module docs).
 
@@ -170,6 +207,11 @@ def polonsky_keer(
     - `rtol`, `max_steps`, `resync_every`: see `PolonskyKeer`.
     - `p0`: initial pressure guess (optional; it is rescaled to the load under load
       control).
+    - `precondition`: `None` (plain CG) or `g -> M g`, an approximate inverse of
+      `apply_fn` (symmetric positive definite; its scale does not matter), e.g.
+      `inverse_preconditioner`.
+    - `self_compliance`: the diagonal entry of `apply_fn` [length/stress] (computed
+      with one operator application when omitted).
     """
     dtype = h.dtype
     target = jnp.asarray(target, dtype)
@@ -179,8 +221,13 @@ def polonsky_keer(
     # gives a pressure that closes an interference locally: the start of a
     # displacement-controlled solve from p = 0, and the step for re-entering cells when
     # the CG step vanishes (e.g. a few symmetric cells with equal gaps).
-    unit = jnp.zeros_like(h).at[h.shape[0] // 2, h.shape[1] // 2].set(1.0)
-    k00 = apply_fn(unit)[h.shape[0] // 2, h.shape[1] // 2]
+    if self_compliance is None:
+        unit = jnp.zeros_like(h).at[h.shape[0] // 2, h.shape[1] // 2].set(1.0)
+        k00 = apply_fn(unit)[h.shape[0] // 2, h.shape[1] // 2]
+        setup_applications = 2
+    else:
+        k00 = jnp.asarray(self_compliance, dtype)
+        setup_applications = 1
     if load_control:
         p0 = jnp.full_like(h, 1.0) if p0 is None else p0
     else:
@@ -207,8 +254,9 @@ def polonsky_keer(
         restart=jnp.array(True),
         it=jnp.array(0),
         residual=res0,
-        applications=jnp.array(2),
+        applications=jnp.array(setup_applications),
     )
+    per_iteration = 1 if precondition is None else 2
 
     # ---- Main loop ------------------------------------------------------------------
     def cond(s):
@@ -219,9 +267,15 @@ def polonsky_keer(
         contact = p > 0
         n_contact = jnp.sum(contact)
         gc = jnp.where(contact, g, 0)
-        g_norm = jnp.sum(gc * gc)
+        if precondition is None:
+            z = gc
+        else:
+            z = jnp.where(contact, precondition(gc), 0)
+            if load_control:  # keep the load: a mean-free direction on the contact
+                z = jnp.where(contact, z - _safe_div(jnp.sum(z), n_contact), 0)
+        g_norm = jnp.sum(gc * z)  # (g, M g); (g, g) without preconditioner
         beta = jnp.where(s["restart"], 0.0, _safe_div(g_norm, s["g_norm_old"]))
-        t = jnp.where(contact, g + beta * s["t"], 0)
+        t = jnp.where(contact, z + beta * s["t"], 0)
         r_raw = apply_fn(t)
         r = r_raw
         if load_control:
@@ -233,7 +287,10 @@ def polonsky_keer(
         p_new = jnp.maximum(p_step, 0)
         # Re-entry: cells out of contact that penetrate get pressure.
         overlap = (~contact) & (g < 0)
-        tau_overlap = jnp.where(tau > 0, tau, 1 / k00)
+        if precondition is None:
+            tau_overlap = jnp.where(tau > 0, tau, 1 / k00)
+        else:  # tau is in units of the preconditioned direction: use the local compliance
+            tau_overlap = 1 / k00
         p_new = jnp.where(overlap, p_new - tau_overlap * g, p_new)
         changed = jnp.any(clipped & contact) | jnp.any(overlap)
         if load_control:
@@ -254,7 +311,7 @@ def polonsky_keer(
 
         certify = (~need_exact) & (res <= rtol)
         u_new, g_new, res = jax.lax.cond(certify, exact, lambda: (u_new, g_new, res))
-        applications = s["applications"] + 1 + need_exact + certify
+        applications = s["applications"] + per_iteration + need_exact + certify
         return dict(
             p=p_new,
             u=u_new,
