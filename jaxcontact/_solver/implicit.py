@@ -40,6 +40,7 @@ import jax.numpy as jnp
 from jax.scipy.sparse.linalg import gmres
 
 from .coupled import StepConfig, contact_step
+from .normal import inverse_preconditioner
 
 
 def _displacements(operator, config: StepConfig, compliance, poisson, p, q):
@@ -115,7 +116,8 @@ def _residual(operator, config, frozen, x, theta):
     return f_p, f_q, f_dz, f_dt
 
 
-def _set_adjoint(a_full, active, load_control, a, b_bar, z_bar, guess, rtol, maxiter):
+def _set_adjoint(a_full, active, load_control, a, b_bar, z_bar, guess, rtol, maxiter,
+                 precondition=None):
     """Conjugate-gradient solve of the transposed system of one field on a frozen set.
 
     The frictionless block (pressure `p` on the contact set, the approach as its
@@ -131,7 +133,10 @@ def _set_adjoint(a_full, active, load_control, a, b_bar, z_bar, guess, rtol, max
 
     `a` is the load row's derivative `A_cell / scale` (module docs). The `S` block is
     symmetric positive definite (on mean-free `mu` under load control): projected CG,
-    one FFT pair per iteration, started from `guess` (the next step's adjoint).
+    one FFT pair per iteration, started from `guess` (the next step's adjoint);
+    with `precondition` (`r -> M r`, an approximate inverse of `a_full`, e.g.
+    `normal.inverse_preconditioner`), projected PCG with `P M P`: two FFT pairs per
+    iteration, several times fewer iterations (as the forward `normal.py`).
     **Returns:** `(lambda, lam_m)`.
     """
     dtype = b_bar.dtype
@@ -154,23 +159,27 @@ def _set_adjoint(a_full, active, load_control, a, b_bar, z_bar, guess, rtol, max
     # Relative to the unprojected right-hand side: when b_bar is (nearly) uniform on S
     # the projected one vanishes and the adjoint is all in lam_m.
     limit = (rtol * jnp.sqrt(jnp.sum(b * b))) ** 2
-    rr = jnp.sum(r * r)
+
+    def apply_m(r):
+        return r if precondition is None else project(precondition(r))
 
     def cond(state):
-        _, _, _, rr, it = state
-        return (rr > limit) & (it < maxiter)
+        _, r, _, _, it = state
+        return (jnp.sum(r * r) > limit) & (it < maxiter)
 
     def body(state):
-        v, r, d, rr, it = state
+        v, r, d, rz, it = state
         ad = project(a_full(d))
-        alpha = rr / jnp.sum(d * ad)
+        alpha = rz / jnp.sum(d * ad)
         v = v + alpha * d
         r = r - alpha * ad
-        rr_new = jnp.sum(r * r)
-        d = r + (rr_new / rr) * d
-        return v, r, d, rr_new, it + 1
+        z = apply_m(r)
+        rz_new = jnp.sum(r * z)
+        d = z + (rz_new / rz) * d
+        return v, r, d, rz_new, it + 1
 
-    v, _, _, _, _ = jax.lax.while_loop(cond, body, (v, r, r, rr, jnp.array(0)))
+    z = apply_m(r)
+    v, _, _, _, _ = jax.lax.while_loop(cond, body, (v, r, z, jnp.sum(r * z), jnp.array(0)))
     mu = mu0 + v
     a_mu = a_full(mu)
     if load_control:
@@ -198,9 +207,12 @@ def _normal_adjoint(operator, config, frozen, theta, x_bar, guess, rtol, maxiter
     def a_full(v):
         return (compliance / kz) * operator.apply_normal(v, poisson)
 
+    precondition = None
+    if config.precondition:
+        precondition = inverse_preconditioner(operator, operator.normal_spectrum(poisson))
     lam_p, lam_dz = _set_adjoint(
         a_full, contact, config.normal_force_control, _area_scale(operator, contact),
-        p_bar, dz_bar, guess[0], rtol, maxiter)
+        p_bar, dz_bar, guess[0], rtol, maxiter, precondition)
     return lam_p, q_bar, lam_dz, dt_bar
 
 
@@ -223,9 +235,12 @@ def _uncoupled_x_adjoint(operator, config, frozen, theta, x_bar, guess, rtol, ma
     def a_full(v):
         return (compliance / kt) * operator.apply_tangential(v[None], poisson)[0]
 
+    precondition = None
+    if config.precondition:
+        precondition = inverse_preconditioner(operator, operator.tangential_blocks(poisson)[0])
     lam_q, lam_dt = _set_adjoint(
         a_full, stick, config.tangential_force_control[0], _area_scale(operator, contact),
-        q_bar[0], dt_bar[0], guess[1][0], rtol, maxiter)
+        q_bar[0], dt_bar[0], guess[1][0], rtol, maxiter, precondition)
     lam_q, lam_dt = lam_q[None], lam_dt[None]
     zero = jnp.zeros((), p_bar.dtype)
     coupling = residual_vjp((jnp.zeros_like(p_bar), lam_q, zero, lam_dt))
