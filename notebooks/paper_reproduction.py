@@ -598,9 +598,15 @@ for (c, r, v), s in found.items():
     check((f_total <= MU * wn * (1 + 1e-6)).all(), f"{c}, ratio {r}: |F| <= mu W")
     sl = s.sliding[good]
     if c == "x":  # semi-coupled sliding: q = mu p along x in every cell
+        # From the second sliding step on: at the first one a few trailing-edge cells
+        # can still slip backwards (total slip law; 64 x 64, ratio 10, 1e3 um/s: 4 of
+        # 424 cells, 0.993 mu W).
+        held = sl & np.concatenate([[False], sl[:-1]])
+        print(f"  {c}, ratio {r}: F_x / (mu W) at the first sliding step "
+              f"{(fx[sl] / (MU * wn[sl]))[:1]}")
         check(
-            np.allclose(fx[sl], MU * wn[sl], rtol=1e-5),
-            f"{c}, ratio {r}: F_x = mu W once sliding",
+            np.allclose(fx[held], MU * wn[held], rtol=1e-5),
+            f"{c}, ratio {r}: F_x = mu W once sliding (from the second sliding step)",
         )
     else:  # fully coupled: the radial slip of the coupling tilts q off the x axis
         print(f"  full coupling, sliding: F_x / (mu W) = {fx[sl] / (MU * wn[sl])}")
@@ -724,13 +730,17 @@ for figure, paper, ours in SUMMARY:
 #   constant (0.5009 at every step) and the stick pattern fixed; the creep case
 #   (DC) does not (0.501 -> 0.204). Exact for the discrete scheme with the total slip
 #   law (see `jc.presets`).
-# - Figs. 23-27 at 64 x 64: the semi-coupled runs (ratios 3 and 10, three rates)
-#   converged at every step; the first fully coupled one (ratio 3, 1e3 um/s, held
-#   delta_z) had not finished after 12 minutes (nice'd, on a loaded 2-core machine)
-#   and we stopped the run; the joint solver has changed since (commit 399662d, gross
-#   sliding) and we have not re-run it. So we have NOT compared Figs. 23-27 at this
-#   size. At CI size (16 x 16, 0.5 tau, 4e3 um/s) both couplings reach gross sliding;
-#   semi-coupled, F_x = mu W once sliding; fully coupled, |F| <= mu W with F_x below
-#   mu W (0.905 mu W at the first sliding step, then rising towards mu W): the
-#   coupling's radial slip tilts the shear off the x axis. At that size both couplings
-#   slid at the same step, and the held-load run did not slide within 0.5 tau.
+# - Figs. 23-27, 64 x 64, 81 points over 2 tau (re-run 2026-11-21; 2-4 s per scene
+#   after compilation, every step converged): as in the paper, faster rates and the
+#   more fluid-like material slide sooner (semi-coupled, ratio 3: 0.95, 0.50, 0.27 tau
+#   at 1e3, 2e3, 4e3 um/s; ratio 10: 0.53, 0.27, 0.17 tau), and full coupling slides
+#   no later than semi-coupling (ratio 3: 0.92, 0.50, 0.27 tau; ratio 10: 0.45, 0.25,
+#   0.17 tau), sooner at the slow rate, equal within a step at the fast ones. The
+#   stick ratio just before sliding is 0.00-0.05 fully coupled and 0.01-0.10
+#   semi-coupled. Fig. 24b: 161 points slide at 0.462 tau against 0.450 tau with 81
+#   (one step of 0.025 tau). Fig. 26: the held displacement (relaxation) slides at
+#   0.45 tau; the held LOAD (creep) does not slide within 2 tau: later, as the paper
+#   says. Semi-coupled, F_x = mu W once sliding, except at the first sliding step of
+#   ratio 10 at 1e3 um/s (0.993 mu W: four of 424 cells, at the trailing edge x = -0.99
+#   a, still slip backwards at that step under the total slip law; none a step later). Fully coupled, |F| <= mu W with F_x below mu W (the
+#   coupling's radial slip tilts the shear off the x axis).
