@@ -8,7 +8,8 @@ Cases (SI units; rigid sphere R = 10 mm, W = 0.15 N, G = 1 MPa, nu = 0.3):
    tangential compliance against Johnson's one-body formula.
 2. The issue's two timed Cattaneo-Mindlin cases: 105^2 cells over 2.3 a and 256^2 over
    5.5 a (about 45 cells per contact radius).
-3. The ratio of a coupled frictional solve to a normal solve on the same 256^2 grid.
+3. The ratio of a frictional solve to a normal solve on the same 256^2 grid, fully
+   coupled ("full") and uncoupled ("none").
 4. Spence (coupling "full", nu = 0.3, mu = 0.2): the normal load applied in 90
    increments on 105^2 cells over 2.3 a; the stick radius c/a at the end.
 
@@ -93,9 +94,17 @@ def normal_vs_coupled(n=256, width=4.0, mu=0.3, repeats=3):
                      coupling="full")
     op_full = jc.HalfSpace(grid, "full")
     coupled_s, sol = timed(lambda: jc.solve(scene, operator=op_full), repeats)
+    # The same frictional scene without the normal-tangential coupling (Cattaneo-
+    # Mindlin: the normal solve, then one tangential solve).
+    uncoupled = jc.Scene(grid, jc.Sphere(R), jc.Elastic(G, NU), times=jnp.zeros(1),
+                         normal=jc.Force(W), x=jc.Force(0.5 * mu * W), friction=mu,
+                         coupling="none")
+    op_none = jc.HalfSpace(grid, "none", tangential_y=False)
+    uncoupled_s, _ = timed(lambda: jc.solve(uncoupled, operator=op_none), repeats)
     return dict(n=n, normal_s=normal_s, coupled_full_s=coupled_s,
                 ratio=coupled_s / normal_s, rounds=int(sol.rounds[0]),
-                iterations=int(sol.iterations[0]), converged=bool(sol.converged[0]))
+                iterations=int(sol.iterations[0]), converged=bool(sol.converged[0]),
+                uncoupled_s=uncoupled_s, ratio_uncoupled=uncoupled_s / normal_s)
 
 
 def spence(n=105, width=2.3, increments=90, mu=0.2):
