@@ -1,4 +1,5 @@
-"""Options of `jc.solve` that do not change the solution: progress reporting."""
+"""Options of `jc.solve` that do not change the solution: progress reporting, the
+normal CG's preconditioner."""
 
 import jax
 import jax.numpy as jnp
@@ -35,3 +36,21 @@ def test_progress_true_prints_to_stderr(capfd):
 def test_progress_rejects_non_callable():
     with pytest.raises(TypeError, match="progress"):
         jc.solve(_scene(), progress="yes")
+
+
+@pytest.mark.parametrize("friction", [0.0, 0.3])
+def test_preconditioner_changes_the_path_not_the_solution(friction):
+    # A Zener creep history (frictionless, and with uncoupled partial slip under a
+    # tangential load): both paths meet rtol 1e-10 at every step, so the pressures
+    # agree to ~1e-9 of the peak (stated tolerance 1e-7) and the shear to 1e-7 mu p.
+    base = _scene()
+    x = jc.Force(0.3 * friction * 0.05) if friction else None
+    scene = jc.Scene(base.grid, base.indenter, base.material, base.times, base.normal,
+                     x=x, friction=friction, coupling="none")
+    sols = {pc: jc.solve(scene, rtol=1e-10, precondition=pc) for pc in (False, True)}
+    plain, pre = sols[False], sols[True]
+    assert bool(np.all(plain.converged)) and bool(np.all(pre.converged))
+    peak = float(np.max(plain.pressure))
+    np.testing.assert_allclose(pre.pressure, plain.pressure, atol=1e-7 * peak)
+    np.testing.assert_allclose(pre.shear, plain.shear, atol=1e-7 * max(friction, 1e-3) * peak)
+    np.testing.assert_allclose(pre.approach, plain.approach, rtol=1e-8)
