@@ -66,7 +66,14 @@ def _solve(scene: Scene, operator: HalfSpace, config: StepConfig, history_kind: 
     nx, ny = grid.shape
     times = scene.times.astype(dtype)
     h0 = scene.indenter.gap(grid).astype(dtype)
-    material = scene.material
+    # The grid's dtype is the solve's: a float64 material (or any floating leaf) on a
+    # float32 grid is cast, so the time-stepping carry keeps one dtype.
+    material = jax.tree_util.tree_map(
+        lambda leaf: leaf.astype(dtype)
+        if isinstance(leaf, (jax.Array, np.ndarray)) and jnp.issubdtype(leaf.dtype, jnp.floating)
+        else leaf,
+        scene.material,
+    )
     poisson = material.poisson.astype(dtype)
     friction = scene.friction.astype(dtype)
     area = grid.cell_area

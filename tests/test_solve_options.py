@@ -54,3 +54,19 @@ def test_preconditioner_changes_the_path_not_the_solution(friction):
     np.testing.assert_allclose(pre.pressure, plain.pressure, atol=1e-7 * peak)
     np.testing.assert_allclose(pre.shear, plain.shear, atol=1e-7 * max(friction, 1e-3) * peak)
     np.testing.assert_allclose(pre.approach, plain.approach, rtol=1e-8)
+
+
+def test_float32_grid_with_float64_material_solves_in_float32():
+    # With x64 enabled, a material built from Python floats is float64; the grid's
+    # dtype decides the solve's (this used to fail in the time-stepping scan with a
+    # float32/float64 carry mismatch). The float32 history follows the float64 one to
+    # the float32 tolerance (rtol 1e-5): approach within 1e-4.
+    base = _scene()
+    grid32 = jc.Grid((16, 16), jnp.asarray(2e-3, jnp.float32))
+    scene32 = jc.Scene(grid32, base.indenter, base.material, base.times, base.normal)
+    sol32 = jc.solve(scene32)
+    sol64 = jc.solve(base)
+    assert sol32.pressure.dtype == jnp.float32
+    assert bool(np.all(sol32.converged))
+    np.testing.assert_allclose(np.asarray(sol32.approach), np.asarray(sol64.approach),
+                               rtol=1e-4)
