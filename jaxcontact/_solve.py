@@ -74,7 +74,7 @@ def _solve(scene: Scene, operator: HalfSpace, config: StepConfig, history_kind: 
         else leaf,
         scene.material,
     )
-    poisson = material.poisson.astype(dtype)
+    poisson = material.poisson
     friction = scene.friction.astype(dtype)
     area = grid.cell_area
 

@@ -77,9 +77,9 @@ def _solve(operator, h, compliance, poisson, target, load_control, solver):
         rtol=solver.tolerance(h.dtype),
         max_steps=solver.max_steps,
         resync_every=solver.resync_every,
+        self_compliance=operator.diagonal(spectrum),
         p0=p0,
         precondition=precondition,
-        self_compliance=operator.diagonal(spectrum),
     )
     return NormalSolution(
         pressure=state.pressure,

@@ -105,13 +105,14 @@ def _rounds_step(
     precondition = None
     if config.precondition:
         precondition = inverse_preconditioner(operator, operator.normal_spectrum(poisson))
+    k_zz = operator.diagonal(nn_spec)  # once, not in every round
 
     def solve_normal(h_eff, p_start):
         return polonsky_keer(
             apply_normal, h_eff, normal_target, area,
             load_control=config.normal_force_control, rtol=config.rtol,
-            max_steps=config.max_steps, resync_every=config.resync_every, p0=p_start,
-            precondition=precondition, self_compliance=operator.diagonal(nn_spec),
+            max_steps=config.max_steps, resync_every=config.resync_every,
+            self_compliance=k_zz, p0=p_start, precondition=precondition,
         )
 
     if nd == 0:

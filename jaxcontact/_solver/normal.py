@@ -192,9 +192,9 @@ def polonsky_keer(
     rtol: float,
     max_steps: int,
     resync_every: int = 25,
+    self_compliance,
     p0: Float[Array, "nx ny"] | None = None,
     precondition=None,
-    self_compliance=None,
 ) -> NormalState:
     """Solve the normal contact problem (see module docs).
 
@@ -207,11 +207,11 @@ def polonsky_keer(
     - `rtol`, `max_steps`, `resync_every`: see `PolonskyKeer`.
     - `p0`: initial pressure guess (optional; it is rescaled to the load under load
       control).
+    - `self_compliance`: the diagonal entry of `apply_fn` [length/stress]
+      (`HalfSpace.diagonal` of its spectrum).
     - `precondition`: `None` (plain CG) or `g -> M g`, an approximate inverse of
       `apply_fn` (symmetric positive definite; its scale does not matter), e.g.
       `inverse_preconditioner`.
-    - `self_compliance`: the diagonal entry of `apply_fn` [length/stress] (computed
-      with one operator application when omitted).
     """
     dtype = h.dtype
     target = jnp.asarray(target, dtype)
@@ -219,15 +219,10 @@ def polonsky_keer(
     # ---- Initial set-up -----------------------------------------------------------
     # Local compliance: the displacement of a cell under its own unit pressure. It
     # gives a pressure that closes an interference locally: the start of a
-    # displacement-controlled solve from p = 0, and the step for re-entering cells when
-    # the CG step vanishes (e.g. a few symmetric cells with equal gaps).
-    if self_compliance is None:
-        unit = jnp.zeros_like(h).at[h.shape[0] // 2, h.shape[1] // 2].set(1.0)
-        k00 = apply_fn(unit)[h.shape[0] // 2, h.shape[1] // 2]
-        setup_applications = 2
-    else:
-        k00 = jnp.asarray(self_compliance, dtype)
-        setup_applications = 1
+    # displacement-controlled solve from p = 0, and the step for re-entering cells
+    # (always when preconditioned; otherwise when the CG step vanishes, e.g. a few
+    # symmetric cells with equal gaps).
+    k00 = jnp.asarray(self_compliance, dtype)
     if load_control:
         p0 = jnp.full_like(h, 1.0) if p0 is None else p0
     else:
@@ -254,7 +249,7 @@ def polonsky_keer(
         restart=jnp.array(True),
         it=jnp.array(0),
         residual=res0,
-        applications=jnp.array(setup_applications),
+        applications=jnp.array(1),
     )
     per_iteration = 1 if precondition is None else 2
 
