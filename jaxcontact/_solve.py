@@ -203,9 +203,9 @@ def solve(
       `"rounds"` (alternating normal and tangential solves). Either falls back to the
       other safeguards of `_solver/coupled.py` when it fails; uncoupled steps always
       take one round (exact).
-    - `precondition`: precondition the normal CG solves with the full-plane inverse
-      of the operator (default `True`; see `jc.PolonskyKeer`). `False`: plain
-      Polonsky-Keer.
+    - `precondition`: precondition the normal CG solves and the joint coupled
+      iteration with the full-plane inverse of the operator (default `True`; see
+      `jc.PolonskyKeer`). `False`: the diagonal only (plain Polonsky-Keer).
     - `history`: `"auto"` (default: none for an elastic material, the O(Nt) recursion
       for a material with a creep series, the direct sum otherwise), `"recursive"` or
       `"direct"` (the O(Nt^2) sum of the paper, Eqs. 12-13; a reference).

@@ -32,6 +32,7 @@ import pytest
 import jaxcontact as jc
 from jaxcontact._solver.coupled import StepConfig, _rounds_step, contact_step
 from jaxcontact._solver.joint import joint_step
+from jaxcontact._solver.precondition import block_preconditioner
 from jaxcontact._solver.normal import hertzian_guess
 
 
@@ -191,16 +192,32 @@ def test_joint_is_cheaper_than_rounds():
 
 @pytest.mark.slow
 def test_contact_step_never_claims_a_wrong_answer():
-    """With an iteration bound far too small for any method, `contact_step` (joint,
-    then the rounds, then the load root search) reports converged=False with a finite
-    residual above rtol, never a converged flag on an unconverged answer."""
-    run = stepper("step", "full", True, max_steps=3)
+    """With an iteration bound far too small for any method (one joint iteration, and
+    its forced bound update), `contact_step` (joint, then the rounds, then the load
+    root search) reports converged=False with a finite residual above rtol, never a
+    converged flag on an unconverged answer. With three iterations the root search
+    (warm-started displacement-controlled joint solves, FFT-preconditioned) now gets
+    there: a converged flag must then come with the right answer."""
     w = jnp.asarray(CASES["CM F_x ramp"][2][-1:])
     t = jnp.asarray(CASES["CM F_x ramp"][3][-1:])
+    run = stepper("step", "full", True, max_steps=1)
     sol = jax.tree_util.tree_map(np.asarray, run(w, t, MU, 1.0))
     assert not sol.converged[0]
     assert np.isfinite(sol.residual[0]) and sol.residual[0] > RTOL
     assert np.all(np.isfinite(sol.pressure)) and np.all(np.isfinite(sol.shear))
+
+    run = stepper("step", "full", True, max_steps=3)
+    sol = jax.tree_util.tree_map(np.asarray, run(w, t, MU, 1.0))
+    if sol.converged[0]:
+        # The reference: the same step at the end of the ramp (its load history does
+        # not matter in one step from zero under the incremental law: no previous
+        # slip), solved alone with the default iteration bound.
+        ref = jax.tree_util.tree_map(np.asarray, stepper("step", "full", True)(w, t, MU, 1.0))
+        p_max = ref.pressure.max()
+        assert np.abs(sol.pressure - ref.pressure).max() <= same(N) * p_max
+        assert np.abs(sol.shear - ref.shear).max() <= same(N) * MU * p_max
+    else:
+        assert sol.residual[0] > RTOL
 
 
 @pytest.mark.slow
@@ -286,3 +303,62 @@ def test_zener_found_displacement_reproduces_the_load():
 def test_solve_rejects_unknown_method():
     with pytest.raises(ValueError, match="method"):
         jc.solve(zener_scene(n=8, steps=2), method="newton")
+
+
+# ---- The preconditioner of the joint iteration ------------------------------------------
+
+def _restricted_cg(apply_a, precondition, rhs, mask, rtol=1e-8, max_steps=300):
+    """Preconditioned CG on `mask A mask x = mask rhs`; returns (x, iterations)."""
+    b = jnp.where(mask, rhs, 0)
+    x = jnp.zeros_like(b)
+    r = b
+    z = jnp.where(mask, precondition(r), 0)
+    d, rz = z, jnp.vdot(r, z)
+    for k in range(1, max_steps + 1):
+        ad = jnp.where(mask, apply_a(d), 0)
+        alpha = rz / jnp.vdot(d, ad)
+        x, r = x + alpha * d, r - alpha * ad
+        if jnp.linalg.norm(r) <= rtol * jnp.linalg.norm(b):
+            return x, k
+        z = jnp.where(mask, precondition(r), 0)
+        rz_new = jnp.vdot(r, z)
+        d, rz = z + rz_new / rz * d, rz_new
+    return x, max_steps
+
+
+@pytest.mark.parametrize("coarse", [False, True])
+def test_block_preconditioner(coarse):
+    """`precondition.block_preconditioner` on each block of the operator restricted to a disc
+    (a stick zone of 20 cells radius at n = 64): CG converges to 1e-8 in at most 40 %
+    of the iterations of the diagonal (Jacobi) preconditioner (50 % on the unpadded
+    grid; measured 9 and 12 against 27-29), to the same solution (1e-6 of its max).
+    Without the floor of the tangential spectra by the normal one, the xx block needs
+    more than twice as many (measured 21): the padded xx spectrum has negative modes,
+    checked here (the reason for the floor)."""
+    n = 64
+    grid = jc.Grid((n, n), 1.0)
+    op = jc.HalfSpace(grid, "full")
+    nn = op.normal_spectrum(NU)
+    xx, _, yy = op.tangential_blocks(NU)
+    assert float(jnp.min(xx)) < 0 < float(jnp.min(nn))
+    m = block_preconditioner(op, nn, xx, yy, coarse=coarse)
+    x = (jnp.arange(n) - n / 2 + 0.5) / n
+    r2 = x[:, None] ** 2 + x[None, :] ** 2
+    mask = r2 < (20 / n) ** 2
+    rhs = 1.0 + jnp.exp(-((x[:, None] - 0.1) ** 2 + x[None, :] ** 2) / 0.01)
+    for block, spec in enumerate((nn, xx, yy)):
+        def apply_a(v, spec=spec):
+            return op.inverse(op.forward(v) * spec)
+
+        def precondition(v, block=block):
+            return m(jnp.zeros((3, n, n)).at[block].set(v))[block]
+
+        diag = op.diagonal(spec)
+        x_j, k_j = _restricted_cg(apply_a, lambda v: v / diag, rhs, mask)
+        x_m, k_m = _restricted_cg(apply_a, precondition, rhs, mask)
+        assert k_m <= (0.5 if coarse else 0.4) * k_j, (block, k_m, k_j)
+        assert float(jnp.max(jnp.abs(x_m - x_j))) <= 1e-6 * float(jnp.max(jnp.abs(x_j)))
+        if block == 1 and not coarse:  # the same without the floor
+            _, k_raw = _restricted_cg(apply_a, lambda v: op.inverse(op.forward(v) / xx),
+                                      rhs, mask)
+            assert k_raw >= 2 * k_m, (k_raw, k_m)

@@ -71,7 +71,9 @@ class StepConfig(NamedTuple):
     # Coupled steps: "joint" (joint projected CG, `joint.py`) or "rounds" (block
     # Gauss-Seidel normal/tangential rounds). Ignored without coupling (one round).
     method: str = "joint"
-    # Normal CG solves: preconditioned by the full-plane inverse (`normal.py`).
+    # CG solves preconditioned by the full-plane inverse of the operator: normal
+    # (`normal.py`) and joint coupled (`precondition.py`); the tangential CG of the
+    # uncoupled / rounds path keeps its diagonal preconditioner.
     precondition: bool = True
 
 
