@@ -362,3 +362,24 @@ def test_block_preconditioner(coarse):
             _, k_raw = _restricted_cg(apply_a, lambda v: op.inverse(op.forward(v) / xx),
                                       rhs, mask)
             assert k_raw >= 2 * k_m, (k_raw, k_m)
+
+
+@pytest.mark.slow
+def test_periodic_coupled_step_converges_quickly():
+    """A periodic grid (whose operator has no zero mode) through the joint solver with
+    the default preconditioning: Cattaneo-Mindlin "full" under load control in two
+    steps converges in at most 150 iterations per step (61 and 34 measured; with the
+    FFT directions on a periodic grid, 4208 with the fallbacks), meets both loads,
+    and keeps |q| <= mu p."""
+    a = hertz_radius()
+    grid = jc.Grid((48, 48), 4 * a, periodic=True)
+    force = 0.5 * MU * W
+    scene = jc.Scene(grid, jc.Sphere(R), jc.Elastic(G, NU), jnp.arange(2.0),
+                     jc.Force(W * jnp.array([0.5, 1.0])), x=jc.Force(force * jnp.ones(2)),
+                     friction=MU, coupling="full")
+    sol = jax.tree_util.tree_map(np.asarray, jc.solve(scene))
+    assert np.all(sol.converged), sol.residual
+    assert np.all(sol.iterations <= 150), sol.iterations
+    np.testing.assert_allclose(sol.tangential_force[:, 0], force, rtol=RTOL * 10)
+    mag = np.sqrt(np.sum(sol.shear**2, axis=1))
+    assert np.all(mag <= MU * sol.pressure * (1 + 1e-6) + 1e-12 * sol.pressure.max())
