@@ -32,8 +32,8 @@ import pytest
 import jaxcontact as jc
 from jaxcontact._solver.coupled import StepConfig, _rounds_step, contact_step
 from jaxcontact._solver.joint import joint_step
-from jaxcontact._solver.precondition import block_preconditioner
 from jaxcontact._solver.normal import hertzian_guess
+from jaxcontact._solver.precondition import block_preconditioner
 
 
 R, W, G, NU, MU = 10e-3, 0.15, 1e6, 0.3, 0.3
@@ -328,8 +328,8 @@ def _restricted_cg(apply_a, precondition, rhs, mask, rtol=1e-8, max_steps=300):
 
 @pytest.mark.parametrize("coarse", [False, True])
 def test_block_preconditioner(coarse):
-    """`precondition.block_preconditioner` on each block of the operator restricted to a disc
-    (a stick zone of 20 cells radius at n = 64): CG converges to 1e-8 in at most 40 %
+    """`precondition.block_preconditioner` on each block of the operator restricted to
+    a disc (a stick zone of 20 cells radius at n = 64): CG converges to 1e-8 in at most 40 %
     of the iterations of the diagonal (Jacobi) preconditioner (50 % on the unpadded
     grid; measured 9 and 12 against 27-29), to the same solution (1e-6 of its max).
     Without the floor of the tangential spectra by the normal one, the xx block needs

@@ -60,9 +60,9 @@ increments: 759 -> 668 iterations).
   free variables, the rotating cells scaled by `C K_tt(0) / (C K_tt(0) +
   curvature)` (non-periodic grids only: see `fft_precond`). Right after slip cells
   were released the diagonal preconditioner (`p` by `1 / C K_zz(0)`, `q` by
-  `1 / (C K_tt(0) + curvature)`) is used instead. Then the mean removal (normal load) and the oblique load-preserving
-  projection of `tangential.py` (tangential loads), block-diagonal because each load
-  involves only `p` or only `q`. Measured (105^2, float64, rtol 1e-8), with the
+  `1 / (C K_tt(0) + curvature)`) is used instead. Then the mean removal (normal
+  load) and the oblique load-preserving projection of `tangential.py` (tangential
+  loads), block-diagonal because each load involves only `p` or only `q`. Measured (105^2, float64, rtol 1e-8), with the
   merged and early bound updates below: Spence's ramp (90 increments) 3921 -> 1709
   iterations (FFT preconditioner always: 1548, but Cattaneo-Mindlin under load
   control in one step then takes 88 instead of 55; with the switch 62);
@@ -247,7 +247,8 @@ def joint_solve(
 ):
     """`joint_step`, also returning statistics: `applications` (equivalent coupled
     operator applications: a forward or an inverse transform of all components counts
-    1/2) and `counts` (unused (0), periodic resyncs, bound updates, restarts)."""
+    1/2; the preconditioner's unpadded transforms, about 1/4 of an application per
+    iteration, are not counted) and `counts` (unused (0), periodic resyncs, bound updates, restarts)."""
     nd = config.nd
     if nd not in (1, 2) or not config.coupled:
         raise ValueError("joint_step needs a coupled step with nd = 1 or 2")
@@ -393,6 +394,10 @@ def joint_solve(
         return (f_norm >= limit) & (f_norm > 0)
 
     # ---- Conditions (normal._evaluate and tangential_cg's evaluate) ------------------
+    def stick_of(q, bound):
+        """Contact cells strictly inside their disc `|q| < bound` (by `stick_tol`)."""
+        return (bound > 0) & (_dot(q, q) < (bound * (1 - stick_tol)) ** 2)
+
     def evaluate(x, u, scales, bound, sliding):
         """Both residuals at `(p, q)` with displacements `u`, the tangential one for
         the friction bound `bound`."""
@@ -415,7 +420,7 @@ def joint_solve(
 
         contact_t = bound > 0
         w = u[1:] + b
-        stick = contact_t & (_dot(q, q) < (bound * (1 - stick_tol)) ** 2)
+        stick = stick_of(q, bound)
         n_stick = jnp.sum(stick)
         mean_stick = _safe_div(_sum2(jnp.where(stick[None], w, 0)), n_stick)
         mean_contact = _safe_div(_sum2(jnp.where(contact_t[None], w, 0)), jnp.sum(contact_t))
@@ -444,7 +449,7 @@ def joint_solve(
     def fix_load(q, bound):
         """Shift the stick cells (or, if none, all contact cells) to carry the load."""
         contact = bound > 0
-        stick = contact & (_dot(q, q) < (bound * (1 - stick_tol)) ** 2)
+        stick = stick_of(q, bound)
         any_stick = jnp.any(stick)
         where = jnp.where(any_stick, stick, contact)
         count = jnp.sum(where)
@@ -640,8 +645,7 @@ def joint_solve(
         upd = s["want"]
         bound_new = jnp.where(upd, friction * p_new, bound)
         sliding_new = jnp.where(upd, sliding_of(p_new), sliding)
-        stick_b = contact_t & (_dot(q_new, q_new) < (bound * (1 - stick_tol)) ** 2)
-        follow = contact_t & ~stick_b & (p_new > 0) & ~sliding_new
+        follow = contact_t & ~stick_of(q_new, bound) & (p_new > 0) & ~sliding_new
         q_new = jnp.where(upd, settle_shear(q_new, bound_new, follow, sliding_new), q_new)
         x_new = jnp.concatenate([p_new[None], q_new])
 

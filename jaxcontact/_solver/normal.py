@@ -45,6 +45,8 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
+from .precondition import inverse_symbol
+
 
 class PolonskyKeer(eqx.Module):
     """Polonsky-Keer conjugate gradient solver for the normal contact problem.
@@ -98,11 +100,9 @@ class PolonskyKeer(eqx.Module):
 
 def inverse_preconditioner(operator, spectrum):
     """`g -> F^-1[F[g] / spectrum]` on the operator's (padded) FFT grid: the full-plane
-    inverse of the convolution with the real, even `spectrum` (any positive scale).
-    Entries at or below `1e-12` of the largest (the zero mode of a periodic grid, whose
-    mean displacement is set to zero) are dropped rather than inverted."""
-    floor = 1e-12 * jnp.max(jnp.abs(spectrum))
-    inverse = jnp.where(spectrum > floor, 1 / jnp.where(spectrum > floor, spectrum, 1), 0)
+    inverse of the convolution with the real, even `spectrum` (any positive scale),
+    inverted by `precondition.inverse_symbol` (near-zero modes dropped)."""
+    inverse = inverse_symbol(spectrum)
 
     def apply(g):
         return operator.inverse(operator.forward(g) * inverse)

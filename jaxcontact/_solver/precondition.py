@@ -21,23 +21,25 @@ are left out), with two differences:
 import jax.numpy as jnp
 
 
+def inverse_symbol(spectrum):
+    """`1 / spectrum` of a real, even spectrum, entries at or below `1e-12` of the
+    largest magnitude (the zero mode of a periodic grid, whose mean displacement is set
+    to zero) dropped (0) rather than inverted."""
+    floor = 1e-12 * jnp.max(jnp.abs(spectrum))
+    return jnp.where(spectrum > floor, 1 / jnp.where(spectrum > floor, spectrum, 1), 0)
+
+
 def block_preconditioner(operator, nn, xx, yy=None, *, coarse=True):
     """`r -> M r` for a field `(r_z, r_x[, r_y])`, `(1 + nd, nx, ny)`.
 
     `nn`, `xx`, `yy`: the real spectra of the `zz`, `xx`, `yy` blocks in the layout of
     `operator.forward`, with a common scale (e.g. times a compliance); `yy=None` for
-    one shear component. Spectra at or below `1e-12` of their largest (the zero mode of a
-    periodic grid) are dropped. `coarse`: apply on the unpadded grid (non-periodic
-    grids; periodic ones are unpadded anyway).
+    one shear component. Inverted by `inverse_symbol`. `coarse`: apply on the
+    unpadded grid (non-periodic grids; periodic ones are unpadded anyway).
     """
-
-    def inv(spec):
-        floor = 1e-12 * jnp.max(spec)
-        return jnp.where(spec > floor, 1 / jnp.where(spec > floor, spec, 1), 0)
-
-    blocks = [inv(nn), inv(jnp.maximum(xx, nn))]
+    blocks = [inverse_symbol(nn), inverse_symbol(jnp.maximum(xx, nn))]
     if yy is not None:
-        blocks.append(inv(jnp.maximum(yy, nn)))
+        blocks.append(inverse_symbol(jnp.maximum(yy, nn)))
     m = jnp.stack(blocks)
     grid = operator.grid
     if grid.periodic or not coarse:
