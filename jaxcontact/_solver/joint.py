@@ -624,7 +624,11 @@ def joint_solve(
         # -- projections -------------------------------------------------------------
         x_step = x + step
         p_step, q_step = x_step[0], x_step[1:]
-        p_new = jnp.maximum(p_step, 0)
+        # Cells out of contact stay out unless they penetrate (re-entry below): the
+        # previous change in the step would bring back the cells it just clipped, a
+        # cycle on the contact set (nu = 0.5, where the pressure alone moves: a 30-step
+        # ramp at 105^2 had steps of ~160 iterations, stopped by `_STALL`, now 10-13).
+        p_new = jnp.where(contact, jnp.maximum(p_step, 0), 0)
         overlap = (~contact) & (g < 0)  # re-entry of penetrating cells
         # Re-entering cells: the step's local pressure (the FFT direction's scale
         # differs from the diagonal one's; -g / k_zz is the cell's own compliance).
