@@ -1,4 +1,10 @@
-import jax
+import os
+
+# Two test processes (pytest-xdist, pyproject addopts): on a GPU, neither may take
+# most of its memory up front.
+os.environ.setdefault("XLA_PYTHON_CLIENT_PREALLOCATE", "false")
+
+import jax  # noqa: E402
 
 
 # Validation runs in float64 (float32 tests convert explicitly).
