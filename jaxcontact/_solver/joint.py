@@ -55,17 +55,20 @@ increments: 759 -> 668 iterations).
   preconditioner and the step (`tangential.py`);
 - preconditioner: the full-plane inverse of the operator's block diagonal
   (`precondition.block_preconditioner`: the padded tangential spectra floored by the
-  normal one, on the unpadded grid; inverting the whole symbol matrix, coupling and
+  normal one, on the unpadded grid, raised to the continuous half-space symbols where
+  the wrapped kernel's are too small; inverting the whole symbol matrix, coupling and
   `xy` included, saved 3 % of the iterations at a higher cost), restricted to the
   free variables, the rotating cells scaled by `C K_tt(0) / (C K_tt(0) +
   curvature)` (non-periodic grids only: see `fft_precond`). Right after slip cells
   were released the diagonal preconditioner (`p` by `1 / C K_zz(0)`, `q` by
   `1 / (C K_tt(0) + curvature)`) is used instead. Then the mean removal (normal
   load) and the oblique load-preserving projection of `tangential.py` (tangential
-  loads), block-diagonal because each load involves only `p` or only `q`. Measured (105^2, float64, rtol 1e-8), with the
-  merged and early bound updates below: Spence's ramp (90 increments) 3921 -> 1709
-  iterations (FFT preconditioner always: 1548, but Cattaneo-Mindlin under load
-  control in one step then takes 88 instead of 55; with the switch 62);
+  loads), block-diagonal because each load involves only `p` or only `q`. Measured
+  (105^2, float64, rtol 1e-8), with the merged and early bound updates below:
+  Spence's ramp (90 increments) 3921 -> 1709 iterations (FFT preconditioner always:
+  1548, but Cattaneo-Mindlin under load control in one step then takes 88 instead of
+  55; with the switch 62); with the continuous symbols 1450, and 46 for that
+  Cattaneo-Mindlin step (56 at 256^2 over 4 a, 72 before);
 - the step minimises the quadratic exactly over the subspace spanned by the
   preconditioned gradient's `p` part, its `q` part, and the previous change of `x` (a
   3x3 system): one exact line search per block, and the CG recurrence (the 2-d
@@ -286,7 +289,8 @@ def joint_solve(
     c_zz = jnp.sum(w_ky * nn) / n_par
     c_tt = jnp.sum(w_ky * xx) / n_par
     precondition = block_preconditioner(operator, nn, xx, yy if nd == 2 else None,
-                                        coarse=_COARSE_PRECOND)
+                                        coarse=_COARSE_PRECOND, compliance=compliance,
+                                        poisson=poisson)
     # Not on periodic grids: their operator maps a uniform traction to zero (the mean
     # displacement goes into the approach), the inverse has no zero mode, and under
     # tangential load control the FFT directions then stall (48^2, CM "full": 4208
