@@ -3,7 +3,7 @@
 `normal.inverse_preconditioner` inverts one spectrum on the operator's padded FFT grid.
 Here the blocks of the normal-tangential operator: `block_preconditioner` applies the
 inverse of its block diagonal (`zz`, `xx`, `yy` symbols; the coupling and `xy` blocks
-are left out), with two differences:
+are left out), with these differences:
 
 - the padded (DC-FFT) tangential spectra are NOT positive: the truncated kernels give a
   few percent of the modes near-zero or negative values (min -4e-3 of max 100 for unit
@@ -17,9 +17,10 @@ are left out), with two differences:
   transform size. A preconditioner need not be exact: +14 % iterations, -25 % time
   for the joint solver at 105^2;
 - given the material (`compliance`, `poisson`), the unpadded spectra are raised to the
-  CONTINUOUS half-space symbols where these are larger (`continuum_symbols`): the
-  wrapped kernel's low modes are too small when the contact fills most of the grid
-  (the periodic images are close). On a coupled step of a Spence ramp at 105^2 over
+  CONTINUOUS half-space symbols where these are larger (`continuum_symbols`): on some
+  of the lowest modes the wrapped spectra fall to 0.4-0.5 of the continuous symbols
+  (elsewhere their median ratio is 0.97), and those modes are the ones of a contact
+  that fills most of the grid. On a coupled step of a Spence ramp at 105^2 over
   2.3 a (contact and stick sets frozen, PCG to 1e-8): 14 iterations with the wrapped
   spectra, 10 with the continuous symbols, as with the padded spectra (four times
   the transform). The joint solver with the maximum of both: Spence 90 x 105^2 1700
