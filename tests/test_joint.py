@@ -348,10 +348,15 @@ def _restricted_cg(apply_a, precondition, rhs, mask, rtol=1e-8, max_steps=300):
     return x, max_steps
 
 
+def _convolution(op, spec):
+    """`v -> F^-1[spec F[v]]` on the operator's FFT grid: one block of the operator."""
+    return lambda v: op.inverse(op.forward(v) * spec)
+
+
 def _block_cg_iterations(op, m, spec, block, mask, rhs):
     """Restricted CG on one block with the block preconditioner `m`: (x, iterations)."""
     n = op.grid.shape[0]
-    return _restricted_cg(lambda v: op.inverse(op.forward(v) * spec),
+    return _restricted_cg(_convolution(op, spec),
                           lambda v: m(jnp.zeros((3, n, n)).at[block].set(v))[block],
                           rhs, mask)
 
@@ -385,14 +390,14 @@ def test_block_preconditioner(kind):
     mask, rhs = _disc_problem(n, 20 / n)
     for block, spec in enumerate((nn, xx, yy)):
         diag = op.diagonal(spec)
-        x_j, k_j = _restricted_cg(lambda v, spec=spec: op.inverse(op.forward(v) * spec),
-                                  lambda v, diag=diag: v / diag, rhs, mask)
+        x_j, k_j = _restricted_cg(_convolution(op, spec), lambda v, diag=diag: v / diag,
+                                  rhs, mask)
         x_m, k_m = _block_cg_iterations(op, m, spec, block, mask, rhs)
         assert k_m <= (0.5 if kind == "unpadded" else 0.4) * k_j, (block, k_m, k_j)
         assert float(jnp.max(jnp.abs(x_m - x_j))) <= 1e-6 * float(jnp.max(jnp.abs(x_j)))
         if block == 1 and kind == "padded":  # the same without the floor
-            _, k_raw = _restricted_cg(lambda v: op.inverse(op.forward(v) * xx),
-                                      lambda v: op.inverse(op.forward(v) / xx), rhs, mask)
+            _, k_raw = _restricted_cg(_convolution(op, xx), _convolution(op, 1 / xx),
+                                      rhs, mask)
             assert k_raw >= 2 * k_m, (k_raw, k_m)
 
 

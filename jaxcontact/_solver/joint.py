@@ -288,15 +288,16 @@ def joint_solve(
     # Self-compliances (the operator's diagonal): the kernels at zero offset.
     c_zz = jnp.sum(w_ky * nn) / n_par
     c_tt = jnp.sum(w_ky * xx) / n_par
-    precondition = block_preconditioner(operator, nn, xx, yy if nd == 2 else None,
-                                        coarse=_COARSE_PRECOND, compliance=compliance,
-                                        poisson=poisson)
     # Not on periodic grids: their operator maps a uniform traction to zero (the mean
     # displacement goes into the approach), the inverse has no zero mode, and under
     # tangential load control the FFT directions then stall (48^2, CM "full": 4208
     # iterations with the fallbacks, against 61 with the diagonal; a finite zero mode
     # 184-8250).
     fft_precond = config.precondition and not grid.periodic
+    if fft_precond:
+        precondition = block_preconditioner(
+            operator, nn, xx, yy if nd == 2 else None, coarse=_COARSE_PRECOND,
+            compliance=compliance, poisson=poisson)
 
     if not grid.periodic and _TRANSPOSED:  # spectra in the (ky, kx) layout of `forward` below
         def _t(a):
