@@ -29,7 +29,9 @@ class NormalSolution(eqx.Module):
     - `normal_force`: total load `W = A sum(p)` [force].
     - `displacement`: `(nx, ny)` normal surface displacement `u_z` [length].
     - `iterations`, `residual`, `converged`: solver statistics (see `jc.PolonskyKeer`).
-    - `applications`: number of operator applications (padded FFT convolutions) used.
+    - `applications`: number of operator applications (padded FFT convolutions) used;
+      the preconditioner's transforms (one unpadded pair per iteration, a quarter of
+      the size) are not counted.
     - `edge_contact` (property): contact reaches the outer ring of cells (on a
       non-periodic grid: the contact is truncated by the domain; enlarge the grid).
     """
@@ -61,7 +63,7 @@ def _solve(operator, h, compliance, poisson, target, load_control, solver):
 
     precondition = None
     if solver.precondition:
-        precondition = inverse_preconditioner(operator, operator.normal_spectrum(poisson))
+        precondition = inverse_preconditioner(operator, operator.normal_spectrum(poisson), poisson)
 
     p0 = None
     if load_control:

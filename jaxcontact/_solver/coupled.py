@@ -106,7 +106,7 @@ def _rounds_step(
 
     precondition = None
     if config.precondition:
-        precondition = inverse_preconditioner(operator, operator.normal_spectrum(poisson))
+        precondition = inverse_preconditioner(operator, operator.normal_spectrum(poisson), poisson)
     k_zz = operator.diagonal(nn_spec)  # once, not in every round
 
     def solve_normal(h_eff, p_start):

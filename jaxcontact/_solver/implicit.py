@@ -209,7 +209,7 @@ def _normal_adjoint(operator, config, frozen, theta, x_bar, guess, rtol, maxiter
 
     precondition = None
     if config.precondition:
-        precondition = inverse_preconditioner(operator, operator.normal_spectrum(poisson))
+        precondition = inverse_preconditioner(operator, operator.normal_spectrum(poisson), poisson)
     lam_p, lam_dz = _set_adjoint(
         a_full, contact, config.normal_force_control, _area_scale(operator, contact),
         p_bar, dz_bar, guess[0], rtol, maxiter, precondition)

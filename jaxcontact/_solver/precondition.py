@@ -84,9 +84,19 @@ def block_preconditioner(operator, nn, xx, yy=None, *, coarse=True, compliance=N
     if grid.periodic or not coarse:
         m = inverse_symbol(spectra)
         return lambda r: operator.inverse(operator.forward(r) * m)
-    spectra = spectra[:, ::2, ::2]
+    continuum = None
     if poisson is not None:
         continuum = compliance * continuum_symbols(grid, poisson, len(spectra) - 1)
+    return unpadded_inverse(grid, spectra, continuum)
+
+
+def unpadded_inverse(grid, padded_spectra, continuum=None):
+    """`r -> F^-1[F[r] / spectrum]` on the UNPADDED grid (periodic, `rfft2`) of a
+    non-periodic grid's padded spectra `(..., 2 nx, ny + 1)`: their even modes (the
+    kernel wrapped modulo the grid), raised to `continuum` `(..., nx, ny // 2 + 1)`
+    (the same scale) where that is larger, inverted by `inverse_symbol`."""
+    spectra = padded_spectra[..., ::2, ::2]
+    if continuum is not None:
         spectra = jnp.maximum(spectra, continuum.astype(spectra.dtype))
     m = inverse_symbol(spectra)
     shape = grid.shape
