@@ -11,7 +11,10 @@ Cases (SI units; rigid sphere R = 10 mm, W = 0.15 N, G = 1 MPa, nu = 0.3):
 3. The ratio of a frictional solve to a normal solve on the same 256^2 grid, fully
    coupled ("full") and uncoupled ("none").
 4. Spence (coupling "full", nu = 0.3, mu = 0.2): the normal load applied in 90
-   increments on 105^2 cells over 2.3 a; the stick radius c/a at the end.
+   increments on 105^2 cells over 2.3 a; the stick radius c/a at the end. Also in
+   float32 (its default rtol 1e-5), whose c/a is compared with float64's, and in
+   float64 at rtol 1e-5 .. 1e-8 against a reference solved to 1e-10 (run time
+   against error).
 
 Usage::
 
@@ -107,8 +110,10 @@ def normal_vs_coupled(n=256, width=4.0, mu=0.3, repeats=3):
                 uncoupled_s=uncoupled_s, ratio_uncoupled=uncoupled_s / normal_s)
 
 
-def spence(n=105, width=2.3, increments=90, mu=0.2):
-    grid = jc.Grid((n, n), width * A)
+def spence(n=105, width=2.3, increments=90, mu=0.2, dtype=jnp.float64):
+    """Spence's ramp; `dtype` is the grid's (the solve's), rtol its default (1e-8 in
+    float64, 1e-5 in float32)."""
+    grid = jc.Grid((n, n), jnp.asarray(width * A, dtype))
     loads = W * jnp.arange(1, increments + 1) / increments
     scene = jc.Scene(grid, jc.Sphere(R), jc.Elastic(G, NU),
                      times=jnp.arange(increments, dtype=float), normal=jc.Force(loads),
@@ -117,11 +122,41 @@ def spence(n=105, width=2.3, increments=90, mu=0.2):
     seconds, sol = timed(lambda: jc.solve(scene, operator=op), 1)
     ratio = np.asarray(sol.stick_ratio)
     return dict(n=n, increments=increments, mu=mu, poisson=NU, solve_s=seconds,
+                dtype=str(sol.pressure.dtype), cell_over_a=float(grid.spacing[0]) / A,
                 c_over_a_final=float(np.sqrt(ratio[-1])),
                 c_over_a_half_load=float(np.sqrt(ratio[increments // 2])),
                 iterations_total=int(sol.iterations.sum()),
                 rounds_total=int(sol.rounds.sum()),
                 all_converged=bool(sol.converged.all()))
+
+
+def spence_versus_tolerance(rtols=(1e-5, 1e-6, 1e-7, 1e-8), n=105, width=2.3,
+                            increments=90, mu=0.2):
+    """Spence's ramp (float64) at several rtol against a reference solved to 1e-10:
+    time, iterations, the largest pressure and shear differences over all steps
+    (over the reference's peak pressure), the stick cells that differ (all steps)
+    and c/a at the end."""
+    grid = jc.Grid((n, n), width * A)
+    loads = W * jnp.arange(1, increments + 1) / increments
+    scene = jc.Scene(grid, jc.Sphere(R), jc.Elastic(G, NU),
+                     times=jnp.arange(increments, dtype=float), normal=jc.Force(loads),
+                     friction=mu, coupling="full")
+    op = jc.HalfSpace(grid, "full")
+    ref = jc.solve(scene, operator=op, rtol=1e-10)
+    peak = float(jnp.max(ref.pressure))
+    rows = []
+    for rtol in rtols:
+        seconds, sol = timed(lambda rtol=rtol: jc.solve(scene, operator=op, rtol=rtol), 1)
+        rows.append(dict(
+            rtol=rtol, solve_s=seconds, iterations_total=int(sol.iterations.sum()),
+            all_converged=bool(sol.converged.all()),
+            c_over_a_final=float(np.sqrt(float(sol.stick_ratio[-1]))),
+            pressure_error=float(jnp.max(jnp.abs(sol.pressure - ref.pressure))) / peak,
+            shear_error=float(jnp.max(jnp.abs(sol.shear - ref.shear))) / peak,
+            stick_cells_differing=int(jnp.sum(sol.stick != ref.stick)),
+            stick_cells_differing_final=int(jnp.sum(sol.stick[-1] != ref.stick[-1]))))
+    return dict(reference_rtol=1e-10, cell_over_a=float(grid.spacing[0]) / A,
+                c_over_a_reference=float(np.sqrt(float(ref.stick_ratio[-1]))), rows=rows)
 
 
 def main():
@@ -138,6 +173,8 @@ def main():
         targets=[cattaneo(105, 2.3), cattaneo(256, 5.5)],
         normal_vs_coupled=normal_vs_coupled(128 if args.quick else 256),
         spence=spence(increments=30 if args.quick else 90),
+        spence_float32=spence(increments=30 if args.quick else 90, dtype=jnp.float32),
+        spence_tolerance=spence_versus_tolerance(increments=30 if args.quick else 90),
     )
     for row in results["cattaneo_mindlin"] + results["targets"]:
         print(f"CM n={row['n']:4d} width={row['width_over_a']}a cells/a={row['cells_per_radius']:.1f} "
@@ -146,6 +183,9 @@ def main():
               f"compliance err={row['compliance_rel_error']:+.1e}")
     print("normal vs coupled:", results["normal_vs_coupled"])
     print("Spence:", results["spence"])
+    print("Spence, float32:", results["spence_float32"])
+    for row in results["spence_tolerance"]["rows"]:
+        print("Spence, float64, rtol:", row)
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(results, indent=2))
     print(f"wrote {args.out}")

@@ -27,15 +27,16 @@ Differences from the textbook algorithm (Polonsky & Keer 1999, Wear 231, 206-219
 - Preconditioned (optional, the default in `jc.solve_normal` and `jc.solve`): the
   search direction is built from `z = M g` instead of the gap `g`, where `M` applies
   the INVERSE of the full-plane operator, restricted to the contact set and, under
-  load control, made mean-free on it. `inverse_preconditioner` builds it: `1 /
-  spectrum` on the padded FFT grid (one more padded pair per iteration), or, as the
-  solvers use it, on the UNPADDED grid with the wrapped spectrum raised to
-  Boussinesq's continuous symbol (a quarter of the transform, and no more iterations). The operator restricted to a contact disc of `m`
-  cells across has a condition number growing like `m` (its symbol is `1 / |k|`);
-  `M` removes that growth up to edge effects. Measured (256^2 Hertz, float64, rtol
-  1e-8): 31 -> 7 iterations, 41 -> 20 FFT pairs; a 150-step creep history: 4694 ->
-  897 iterations. The idea is Vollebregt's (2014), whose CONTACT uses an FFT-based
-  preconditioner for its normal CG solver; his also adds deflation.
+  load control, made mean-free on it. The operator restricted to a contact disc of
+  `m` cells across has a condition number growing like `m` (its symbol is `1 /
+  |k|`); `M` removes that growth up to edge effects. Measured with `M` on the padded
+  grid (256^2 Hertz, float64, rtol 1e-8): 31 -> 7 iterations, 41 -> 20 FFT pairs; a
+  150-step creep history: 4694 -> 897 iterations. `inverse_preconditioner` builds
+  `M`: `1 / spectrum` on the padded grid (one more padded pair per iteration), or, as
+  the solvers use it, on the UNPADDED grid with the wrapped spectrum raised to
+  Boussinesq's continuous symbol (a quarter of the transform, no more iterations).
+  The idea is Vollebregt's (2014), whose CONTACT uses an FFT-based preconditioner
+  for its normal CG solver; his also adds deflation.
 - Bounded: at most `max_steps` iterations; a solve that does not reach `rtol` is
   returned with `converged=False`, never silently.
 """
