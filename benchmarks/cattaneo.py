@@ -119,7 +119,7 @@ def spence(n=105, width=2.3, increments=90, mu=0.2, dtype=jnp.float64):
                      times=jnp.arange(increments, dtype=float), normal=jc.Force(loads),
                      friction=mu, coupling="full")
     op = jc.HalfSpace(grid, "full")
-    seconds, sol = timed(lambda: jc.solve(scene, operator=op), 1)
+    seconds, sol = timed(lambda: jc.solve(scene, operator=op), 2)
     ratio = np.asarray(sol.stick_ratio)
     return dict(n=n, increments=increments, mu=mu, poisson=NU, solve_s=seconds,
                 dtype=str(sol.pressure.dtype), cell_over_a=float(grid.spacing[0]) / A,
@@ -146,7 +146,7 @@ def spence_versus_tolerance(rtols=(1e-5, 1e-6, 1e-7, 1e-8), n=105, width=2.3,
     peak = float(jnp.max(ref.pressure))
     rows = []
     for rtol in rtols:
-        seconds, sol = timed(lambda rtol=rtol: jc.solve(scene, operator=op, rtol=rtol), 1)
+        seconds, sol = timed(lambda rtol=rtol: jc.solve(scene, operator=op, rtol=rtol), 2)
         rows.append(dict(
             rtol=rtol, solve_s=seconds, iterations_total=int(sol.iterations.sum()),
             all_converged=bool(sol.converged.all()),

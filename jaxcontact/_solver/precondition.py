@@ -1,6 +1,7 @@
-"""Full-plane inverse preconditioners of the tangential / coupled operator blocks.
+"""Full-plane inverse preconditioners of the contact operators.
 
-`normal.inverse_preconditioner` inverts one spectrum on the operator's padded FFT grid.
+`normal.inverse_preconditioner` inverts one spectrum: on the operator's padded FFT
+grid, or (given `poisson`, what the normal solvers use) with `unpadded_inverse` below.
 Here the blocks of the normal-tangential operator: `block_preconditioner` applies the
 inverse of its block diagonal (`zz`, `xx`, `yy` symbols; the coupling and `xy` blocks
 are left out), with these differences:
