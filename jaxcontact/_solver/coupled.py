@@ -40,7 +40,10 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
 from .normal import inverse_preconditioner, polonsky_keer
+from .precondition import continuum_symbols, unpadded_inverse
 from .tangential import TangentialState, tangential_cg
+
+_TANGENTIAL_FFT = True  # the FFT preconditioner in the tangential CG (nd = 1)
 
 
 class StepResult(NamedTuple):
@@ -137,6 +140,13 @@ def _rounds_step(
         return operator.apply_tangential(q, poisson, blocks=blocks)
 
     self_compliance = operator.diagonal(blocks[0])  # A_xx at zero offset
+    precondition_t = None
+    if config.precondition and nd == 1 and not operator.grid.periodic and _TANGENTIAL_FFT:
+        # The xx spectrum floored by the normal one (its DC-FFT modes near zero or
+        # negative, see precondition.py), on the unpadded grid, raised to Cerruti's.
+        floored = jnp.maximum(xx, operator.normal_spectrum(poisson))[None]
+        precondition_t = unpadded_inverse(
+            operator.grid, floored, continuum_symbols(operator.grid, poisson, 1)[1:])
 
     zx, zy = operator.coupling_spectra(poisson)
 
@@ -169,6 +179,7 @@ def _rounds_step(
                 apply_tangential, b, bound, config.tangential_force_control,
                 tangential_target, area, self_compliance, q0=q_start, rtol=config.rtol,
                 max_steps=config.max_steps, resync_every=config.resync_every,
+                precondition=precondition_t,
             )
 
         if not all_force:
