@@ -146,7 +146,8 @@ def spence_versus_tolerance(rtols=(1e-5, 1e-6, 1e-7, 1e-8), n=105, width=2.3,
     peak = float(jnp.max(ref.pressure))
     rows = []
     for rtol in rtols:
-        seconds, sol = timed(lambda rtol=rtol: jc.solve(scene, operator=op, rtol=rtol), 2)
+        seconds, sol = timed(
+            lambda rtol=rtol: jc.solve(scene, operator=op, rtol=rtol), 2)
         rows.append(dict(
             rtol=rtol, solve_s=seconds, iterations_total=int(sol.iterations.sum()),
             all_converged=bool(sol.converged.all()),
@@ -156,7 +157,8 @@ def spence_versus_tolerance(rtols=(1e-5, 1e-6, 1e-7, 1e-8), n=105, width=2.3,
             stick_cells_differing=int(jnp.sum(sol.stick != ref.stick)),
             stick_cells_differing_final=int(jnp.sum(sol.stick[-1] != ref.stick[-1]))))
     return dict(reference_rtol=1e-10, cell_over_a=float(grid.spacing[0]) / A,
-                c_over_a_reference=float(np.sqrt(float(ref.stick_ratio[-1]))), rows=rows)
+                c_over_a_reference=float(np.sqrt(float(ref.stick_ratio[-1]))),
+                rows=rows)
 
 
 def main():

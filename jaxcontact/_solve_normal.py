@@ -63,7 +63,8 @@ def _solve(operator, h, compliance, poisson, target, load_control, solver):
 
     precondition = None
     if solver.precondition:
-        precondition = inverse_preconditioner(operator, operator.normal_spectrum(poisson), poisson)
+        precondition = inverse_preconditioner(
+            operator, operator.normal_spectrum(poisson), poisson)
 
     p0 = None
     if load_control:

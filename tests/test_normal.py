@@ -228,7 +228,8 @@ def test_preconditioned_matches_plain_in_fewer_iterations(case):
     # The full-plane-inverse preconditioner changes the path, not the solution: both
     # solves meet rtol 1e-10, so their pressures agree to ~1e-8 of the peak (stated
     # tolerance 1e-7), with at most half the CG iterations (measured at 64^2, plain vs
-    # preconditioned: load 19 vs 6, approach 55 vs 27, periodic 26 vs 9, rough 34 vs 10).
+    # preconditioned: load 19 vs 6, approach 55 vs 27, periodic 26 vs 9, rough 34 vs
+    # 10).
     n = 64
     periodic = case == "periodic"
     grid = jc.Grid((n, n), 4 * A_HZ, periodic=periodic)

@@ -40,7 +40,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
 from .normal import inverse_preconditioner, polonsky_keer
-from .precondition import continuum_symbols, unpadded_inverse
+from .precondition import shear_x_preconditioner
 from .tangential import TangentialState, tangential_cg
 
 _TANGENTIAL_FFT = True  # the FFT preconditioner in the tangential CG (nd = 1)
@@ -109,7 +109,8 @@ def _rounds_step(
 
     precondition = None
     if config.precondition:
-        precondition = inverse_preconditioner(operator, operator.normal_spectrum(poisson), poisson)
+        precondition = inverse_preconditioner(
+            operator, operator.normal_spectrum(poisson), poisson)
     k_zz = operator.diagonal(nn_spec)  # once, not in every round
 
     def solve_normal(h_eff, p_start):
@@ -141,12 +142,14 @@ def _rounds_step(
 
     self_compliance = operator.diagonal(blocks[0])  # A_xx at zero offset
     precondition_t = None
-    if config.precondition and nd == 1 and not operator.grid.periodic and _TANGENTIAL_FFT:
+    fft_t = config.precondition and nd == 1 and not operator.grid.periodic
+    if fft_t and _TANGENTIAL_FFT:
         # The xx spectrum floored by the normal one (its DC-FFT modes near zero or
         # negative, see precondition.py), on the unpadded grid, raised to Cerruti's.
-        floored = jnp.maximum(xx, operator.normal_spectrum(poisson))[None]
-        precondition_t = unpadded_inverse(
-            operator.grid, floored, continuum_symbols(operator.grid, poisson, 1)[1:])
+        shear_x = shear_x_preconditioner(operator, poisson)
+
+        def precondition_t(r):
+            return shear_x(r[0])[None]
 
     zx, zy = operator.coupling_spectra(poisson)
 

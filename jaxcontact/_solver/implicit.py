@@ -41,6 +41,7 @@ from jax.scipy.sparse.linalg import gmres
 
 from .coupled import StepConfig, contact_step
 from .normal import inverse_preconditioner
+from .precondition import shear_x_preconditioner
 
 
 def _displacements(operator, config: StepConfig, compliance, poisson, p, q):
@@ -209,7 +210,8 @@ def _normal_adjoint(operator, config, frozen, theta, x_bar, guess, rtol, maxiter
 
     precondition = None
     if config.precondition:
-        precondition = inverse_preconditioner(operator, operator.normal_spectrum(poisson), poisson)
+        precondition = inverse_preconditioner(
+            operator, operator.normal_spectrum(poisson), poisson)
     lam_p, lam_dz = _set_adjoint(
         a_full, contact, config.normal_force_control, _area_scale(operator, contact),
         p_bar, dz_bar, guess[0], rtol, maxiter, precondition)
@@ -237,7 +239,7 @@ def _uncoupled_x_adjoint(operator, config, frozen, theta, x_bar, guess, rtol, ma
 
     precondition = None
     if config.precondition:
-        precondition = inverse_preconditioner(operator, operator.tangential_blocks(poisson)[0])
+        precondition = shear_x_preconditioner(operator, poisson)
     lam_q, lam_dt = _set_adjoint(
         a_full, stick, config.tangential_force_control[0], _area_scale(operator, contact),
         q_bar[0], dt_bar[0], guess[1][0], rtol, maxiter, precondition)

@@ -102,3 +102,17 @@ def unpadded_inverse(grid, padded_spectra, continuum=None):
     m = inverse_symbol(spectra)
     shape = grid.shape
     return lambda r: jnp.fft.irfft2(jnp.fft.rfft2(r) * m, s=shape)
+
+
+def shear_x_preconditioner(operator, poisson):
+    """`r -> M r` for one shear component `(nx, ny)`: the full-plane inverse of the
+    `xx` block per unit compliance. Non-periodic grids: the padded spectrum floored by
+    the normal one, on the unpadded grid, raised to Cerruti's continuous symbol
+    (`unpadded_inverse`); periodic grids: `1 / spectrum` on the grid."""
+    xx = operator.tangential_blocks(poisson)[0]
+    grid = operator.grid
+    if grid.periodic:
+        m = inverse_symbol(xx)
+        return lambda r: operator.inverse(operator.forward(r) * m)
+    floored = jnp.maximum(xx, operator.normal_spectrum(poisson))
+    return unpadded_inverse(grid, floored, continuum_symbols(grid, poisson, 1)[1])
