@@ -43,8 +43,6 @@ from .normal import inverse_preconditioner, polonsky_keer
 from .precondition import shear_x_preconditioner
 from .tangential import TangentialState, tangential_cg
 
-_TANGENTIAL_FFT = True  # the FFT preconditioner in the tangential CG (nd = 1)
-
 
 class StepResult(NamedTuple):
     pressure: Float[Array, "nx ny"]
@@ -142,8 +140,7 @@ def _rounds_step(
 
     self_compliance = operator.diagonal(blocks[0])  # A_xx at zero offset
     precondition_t = None
-    fft_t = config.precondition and nd == 1 and not operator.grid.periodic
-    if fft_t and _TANGENTIAL_FFT:
+    if config.precondition and nd == 1 and not operator.grid.periodic:
         # The xx spectrum floored by the normal one (its DC-FFT modes near zero or
         # negative, see precondition.py), on the unpadded grid, raised to Cerruti's.
         shear_x = shear_x_preconditioner(operator, poisson)

@@ -48,7 +48,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
-from .precondition import continuum_symbols, inverse_symbol, unpadded_inverse
+from .precondition import continuum_symbols, padded_inverse, unpadded_inverse
 
 
 class PolonskyKeer(eqx.Module):
@@ -118,12 +118,7 @@ def inverse_preconditioner(operator, spectrum, poisson=None):
     if poisson is not None and not operator.grid.periodic:
         continuum = continuum_symbols(operator.grid, poisson, 0)[0]
         return unpadded_inverse(operator.grid, spectrum, continuum)
-    inverse = inverse_symbol(spectrum)
-
-    def apply(g):
-        return operator.inverse(operator.forward(g) * inverse)
-
-    return apply
+    return padded_inverse(operator, spectrum)
 
 
 def hertzian_guess(h, load, effective_modulus, cell_area, steps: int = 60):

@@ -41,6 +41,14 @@ def inverse_symbol(spectrum):
     return jnp.where(spectrum > floor, 1 / jnp.where(spectrum > floor, spectrum, 1), 0)
 
 
+def padded_inverse(operator, spectra):
+    """`r -> F^-1[F[r] / spectra]` on the operator's own FFT grid (padded unless
+    periodic), `spectra` in the layout of `operator.forward`, inverted by
+    `inverse_symbol`."""
+    m = inverse_symbol(spectra)
+    return lambda r: operator.inverse(operator.forward(r) * m)
+
+
 def continuum_symbols(grid, poisson, nd):
     """Block diagonal of the continuous half-space symbols per unit compliance on the
     rfft2 modes of the unpadded grid, `(1 + nd, nx, ny // 2 + 1)` [length].
@@ -83,8 +91,7 @@ def block_preconditioner(operator, nn, xx, yy=None, *, coarse=True, compliance=N
     spectra = jnp.stack(spectra)
     grid = operator.grid
     if grid.periodic or not coarse:
-        m = inverse_symbol(spectra)
-        return lambda r: operator.inverse(operator.forward(r) * m)
+        return padded_inverse(operator, spectra)
     continuum = None
     if poisson is not None:
         continuum = compliance * continuum_symbols(grid, poisson, len(spectra) - 1)
@@ -112,7 +119,6 @@ def shear_x_preconditioner(operator, poisson):
     xx = operator.tangential_blocks(poisson)[0]
     grid = operator.grid
     if grid.periodic:
-        m = inverse_symbol(xx)
-        return lambda r: operator.inverse(operator.forward(r) * m)
+        return padded_inverse(operator, xx)
     floored = jnp.maximum(xx, operator.normal_spectrum(poisson))
     return unpadded_inverse(grid, floored, continuum_symbols(grid, poisson, 1)[1])

@@ -126,6 +126,9 @@ def tangential_cg(
       Polonsky & Keer's normal CG).
     """
     nd = b.shape[0]
+    if precondition is not None and nd != 1:
+        raise ValueError(
+            f"tangential_cg: an FFT precondition needs one shear component, got nd={nd}")
     dtype = b.dtype
     force_mask = jnp.asarray(force_control)[:, None, None]
     target = jnp.asarray(target, dtype)
@@ -211,29 +214,32 @@ def tangential_cg(
         weight = jnp.where(full, 1.0, jnp.where(
             rotate, self_compliance / (self_compliance + curv_disc), 0.0))
 
-        # Projection onto load-preserving directions (sum over free variables = 0 per
-        # load-controlled direction), oblique in the preconditioner's metric:
-        # z = P r - P B (B^T P B)^{-1} B^T P r. Symmetric, so CG stays valid.
-        def basis(c):  # B c: c on full cells, (e_perp . c) e_perp on rotating cells
-            return jnp.where(full[None], c[:, None, None], tt * jnp.einsum("i,iab->ab", c, tt)[None])
-
-        eye = jnp.eye(nd, dtype=dtype)
-        m = jnp.sum(jnp.where(full, weight, 0)) * eye + jnp.einsum(
-            "ab,iab,jab->ij", weight, tt, tt)
-        fc = jnp.asarray(force_control)
-        both = fc[:, None] & fc[None, :]
-        m = jnp.where(both, m, eye)
-        pr = weight[None] * r
-        rhs = jnp.where(fc, jnp.sum(pr, axis=(1, 2)), 0.0)
-        empty = jnp.where(jnp.trace(jnp.where(both, m, 0.0)) > 0, 0.0, 1.0)
-        coef = jnp.linalg.solve(m + empty * eye, rhs)
-        z = pr - weight[None] * basis(jnp.where(fc, coef, 0.0))
-        if precondition is not None and nd == 1:
-            # Full-plane inverse on the free cells (no rotating cells in 1-D).
+        if precondition is not None:
+            # Full-plane inverse on the free cells (nd = 1: no rotating cells), made
+            # mean-free there under load control.
             z = jnp.where(full[None], precondition(r), 0)
             if force_control[0]:
                 mean = _safe_div(jnp.sum(z), jnp.sum(full))
                 z = jnp.where(full[None], z - mean, 0)
+        else:
+            # Projection onto load-preserving directions (sum over free variables = 0
+            # per load-controlled direction), oblique in the preconditioner's metric:
+            # z = P r - P B (B^T P B)^{-1} B^T P r. Symmetric, so CG stays valid.
+            def basis(c):  # B c: c on full cells, (e_perp . c) e_perp on rotating cells
+                return jnp.where(full[None], c[:, None, None],
+                                 tt * jnp.einsum("i,iab->ab", c, tt)[None])
+
+            eye = jnp.eye(nd, dtype=dtype)
+            m = jnp.sum(jnp.where(full, weight, 0)) * eye + jnp.einsum(
+                "ab,iab,jab->ij", weight, tt, tt)
+            fc = jnp.asarray(force_control)
+            both = fc[:, None] & fc[None, :]
+            m = jnp.where(both, m, eye)
+            pr = weight[None] * r
+            rhs = jnp.where(fc, jnp.sum(pr, axis=(1, 2)), 0.0)
+            empty = jnp.where(jnp.trace(jnp.where(both, m, 0.0)) > 0, 0.0, 1.0)
+            coef = jnp.linalg.solve(m + empty * eye, rhs)
+            z = pr - weight[None] * basis(jnp.where(fc, coef, 0.0))
         rz = jnp.sum(r * z)
         beta = jnp.where(s["restart"], 0.0, _safe_div(rz, s["g_old"]))
         t = z + beta * s["t"]
