@@ -915,10 +915,7 @@ def test_fft_preconditioned_tangential_cg(control):
     def apply(q):
         return op.inverse(op.forward(q) * symbol)
 
-    shear_x = shear_x_preconditioner(op, NU)
-
-    def fft(r):
-        return shear_x(r[0])[None]
+    fft = shear_x_preconditioner(op, NU)
 
     bound = MU * p
     if control == "force":

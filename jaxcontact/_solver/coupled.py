@@ -143,10 +143,7 @@ def _rounds_step(
     if config.precondition and nd == 1 and not operator.grid.periodic:
         # The xx spectrum floored by the normal one (its DC-FFT modes near zero or
         # negative, see precondition.py), on the unpadded grid, raised to Cerruti's.
-        shear_x = shear_x_preconditioner(operator, poisson)
-
-        def precondition_t(r):
-            return shear_x(r[0])[None]
+        precondition_t = shear_x_preconditioner(operator, poisson)
 
     zx, zy = operator.coupling_spectra(poisson)
 

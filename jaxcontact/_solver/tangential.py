@@ -30,7 +30,7 @@ so the solver is a projected CG in the spirit of Polonsky & Keer (1999):
   outside the search direction); CG restarts when the stick set changes;
 - preconditioned with one shear component (`nd = 1`, what `coupled.contact_step`
   passes on non-periodic grids): the direction on the stick and released cells is the
-  full-plane inverse of `K_xx` (`precondition.unpadded_inverse`: the xx spectrum
+  full-plane inverse of `K_xx` (`precondition.shear_x_preconditioner`: the xx spectrum
   floored by the normal one, on the unpadded grid, raised to Cerruti's continuous
   symbol), made mean-free under load control. Cattaneo-Mindlin in `jc.solve`: 105^2
   over 2.3 a 42 -> 17 iterations, 256^2 over 5.5 a 42 -> 18, 512^2 over 4 a 76 -> 20
@@ -121,7 +121,8 @@ def tangential_cg(
       of a cell under its own unit shear [length/stress] (scales the preconditioner).
     - `q0`: warm start (projected and load-corrected).
     - `precondition`: `None` (the diagonal) or, for `nd = 1` only, `r -> M r`, an
-      approximate inverse of `A` on the whole grid (`(1, nx, ny)`), restricted to the
+      approximate inverse of `A_xx` on the whole grid, one component `(nx, ny) ->
+      (nx, ny)` (`precondition.shear_x_preconditioner`), restricted to the
       stick and released cells and, under load control, made mean-free on them (as
       Polonsky & Keer's normal CG).
     """
@@ -217,7 +218,7 @@ def tangential_cg(
         if precondition is not None:
             # Full-plane inverse on the free cells (nd = 1: no rotating cells), made
             # mean-free there under load control.
-            z = jnp.where(full[None], precondition(r), 0)
+            z = jnp.where(full[None], precondition(r[0])[None], 0)
             if force_control[0]:
                 mean = _safe_div(jnp.sum(z), jnp.sum(full))
                 z = jnp.where(full[None], z - mean, 0)
