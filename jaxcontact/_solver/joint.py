@@ -180,10 +180,18 @@ def _sum2(a):
 
 def _project(q, bound):
     """Each cell's shear onto its disc `|q| <= bound`."""
+    return _onto_discs(q, bound, jnp.zeros(bound.shape, bool))
+
+
+def _onto_discs(q, bound, follow):
+    """Each cell's shear onto its disc `|q| <= bound`, the `follow` cells onto its
+    boundary circle (`|q| = bound`; those with `q = 0` to zero): one `rsqrt` pass for
+    both (it is among the costliest elementwise passes of the joint loop)."""
     m2 = _dot(q, q)
-    out = m2 > bound * bound
-    factor = jnp.where(out, bound * jax.lax.rsqrt(jnp.where(out, m2, 1.0)), 1.0)
-    return q * factor[None]
+    pos = m2 > 0
+    inv = jnp.where(pos, jax.lax.rsqrt(jnp.where(pos, m2, 1.0)), 0.0)
+    onto = follow | (m2 > bound * bound)
+    return q * jnp.where(onto, bound * inv, 1.0)[None]
 
 
 def _solve_small(m, rhs):
@@ -446,7 +454,8 @@ def joint_solve(
         dt = jnp.where(fc, multiplier, tangential_target)
         ds = w - dt[:, None, None]
         ds_mag = jnp.sqrt(_dot(ds, ds))
-        slip_violation = ds + (ds_mag * _inv_norm(q))[None] * q
+        inv = _inv_norm(q)
+        slip_violation = ds + (ds_mag * inv)[None] * q
         violation = jnp.where(stick[None], ds, jnp.where(contact_t[None], slip_violation, 0))
         num = jnp.sqrt(jnp.sum(violation * violation))
         res_t = jnp.where(num == 0, 0.0, _safe_div(num, scales[1]))
@@ -457,7 +466,7 @@ def joint_solve(
         res_t = jnp.maximum(res_t, jnp.max(load_err))
         res_t = jnp.where((bound_total > 0) & ~sliding, res_t, 0.0)
         return dict(g=g, dz=dz, res_n=res_n, ds=ds, dt=dt, stick=stick, res_t=res_t,
-                    residual=jnp.maximum(res_n, res_t))
+                    residual=jnp.maximum(res_n, res_t), inv_norm=inv)
 
     # ---- Loads and projections -----------------------------------------------------
     def rescale(p):
@@ -480,14 +489,12 @@ def joint_solve(
         # it (renormalised) rather than inside, where they would count as stick and
         # the stick set would cycle (displacement control past gross sliding with a
         # load-controlled direction). The load is then met to first order only.
-        on_disc = moved * (_inv_norm(moved) * bound)[None]
-        return jnp.where(any_stick, _project(moved, bound),
-                         jnp.where(contact[None], on_disc, moved))
+        return _onto_discs(moved, bound, contact & ~any_stick)
 
     def settle_shear(q, bound, follow, sliding):
         """Shear on the discs `|q| <= bound`: `follow` cells on the boundary (slip
         cells when the bound is updated), the others projected; loads restored."""
-        q = jnp.where(follow[None], q * (_inv_norm(q) * bound)[None], _project(q, bound))
+        q = _onto_discs(q, bound, follow)
         if any_force:
             q = jnp.where(sliding, q, fix_load(q, bound))
         if all_force:
@@ -550,7 +557,7 @@ def joint_solve(
         contact_t = bound > 0
 
         # -- active sets ------------------------------------------------------------
-        q_hat = q * _inv_norm(q)[None]
+        q_hat = q * ev["inv_norm"][None]
         slip_cells = contact_t & ~stick
         lam_raw = -_dot(ds, q_hat)
         release = slip_cells & (lam_raw < 0) & ~sliding
