@@ -110,22 +110,37 @@ def normal_vs_coupled(n=256, width=4.0, mu=0.3, repeats=3):
                 uncoupled_s=uncoupled_s, ratio_uncoupled=uncoupled_s / normal_s)
 
 
-def spence(n=105, width=2.3, increments=90, mu=0.2, dtype=jnp.float64):
+def coupled_fft_floor(n, dtype, repeats=5):
+    """Seconds of the FFT floor of ONE fully coupled iteration (DESIGN.md section 6):
+    one forward and one inverse padded FFT per block (p, q_x, q_y), i.e. three padded
+    convolutions (`run._fft_floor`, median of `repeats` jitted loops)."""
+    import run
+
+    return 3 * run._fft_floor(jnp, n, dtype, repeats)
+
+
+def spence(n=105, width=2.3, increments=90, mu=0.2, dtype=jnp.float64, repeats=5):
     """Spence's ramp; `dtype` is the grid's (the solve's), rtol its default (1e-8 in
-    float64, 1e-5 in float32)."""
+    float64, 1e-5 in float32). The best of `repeats` timed solves (other tenants of a
+    shared machine slow single runs by up to 50 %), and the time per joint iteration
+    over the coupled FFT floor measured in the same process."""
     grid = jc.Grid((n, n), jnp.asarray(width * A, dtype))
     loads = W * jnp.arange(1, increments + 1) / increments
     scene = jc.Scene(grid, jc.Sphere(R), jc.Elastic(G, NU),
                      times=jnp.arange(increments, dtype=float), normal=jc.Force(loads),
                      friction=mu, coupling="full")
     op = jc.HalfSpace(grid, "full")
-    seconds, sol = timed(lambda: jc.solve(scene, operator=op), 2)
+    seconds, sol = timed(lambda: jc.solve(scene, operator=op), repeats)
+    floor = coupled_fft_floor(n, dtype)
+    iterations = int(sol.iterations.sum())
     ratio = np.asarray(sol.stick_ratio)
     return dict(n=n, increments=increments, mu=mu, poisson=NU, solve_s=seconds,
+                iteration_s=seconds / iterations, coupled_fft_floor_s=floor,
+                iteration_over_floor=seconds / iterations / floor,
                 dtype=str(sol.pressure.dtype), cell_over_a=float(grid.spacing[0]) / A,
                 c_over_a_final=float(np.sqrt(ratio[-1])),
                 c_over_a_half_load=float(np.sqrt(ratio[increments // 2])),
-                iterations_total=int(sol.iterations.sum()),
+                iterations_total=iterations,
                 rounds_total=int(sol.rounds.sum()),
                 all_converged=bool(sol.converged.all()))
 
@@ -179,7 +194,8 @@ def main():
         spence_tolerance=spence_versus_tolerance(increments=30 if args.quick else 90),
     )
     for row in results["cattaneo_mindlin"] + results["targets"]:
-        print(f"CM n={row['n']:4d} width={row['width_over_a']}a cells/a={row['cells_per_radius']:.1f} "
+        print(f"CM n={row['n']:4d} width={row['width_over_a']}a "
+              f"cells/a={row['cells_per_radius']:.1f} "
               f"solve={row['solve_s']:.3f}s it={row['iterations']} "
               f"c err={row['stick_radius_error_cells']:+.2f} cells "
               f"compliance err={row['compliance_rel_error']:+.1e}")
