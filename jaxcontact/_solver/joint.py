@@ -81,15 +81,18 @@ increments: 759 -> 668 iterations).
 - the whole change of `x` after the projections (clipping, re-entry, rescaling,
   projection onto the discs, load fixes) is transformed (forward and inverse), so the
   displacement is exact at every iteration (up to round-off): 1.5 coupled operator
-  applications per iteration plus the preconditioner's unpadded transforms, no
-  `cond` in the loop body except the final certification;
+  applications per iteration plus the preconditioner's unpadded transforms. Three
+  `cond`s in the loop body, on cheap real-space operands: the preconditioner (skipped
+  while the diagonal one is used), the projection onto updated discs (bound updates
+  only) and the final certification;
 - restart (drop the previous step) when variables are freed (released slip cells,
   re-entering cells), as Polonsky & Keer; every `resync_every` iterations the
   displacement of `x` itself is transformed instead of the change (round-off drift).
 
 **Cost** (2-core CPU, float64, n = 128, padded spectra 256 x 129): one iteration is
 three 3-component FFTs (forward of `z`, forward and inverse of the change), two
-unpadded ones (the preconditioner) plus about 30 real-space passes; the spectra are
+unpadded ones (the preconditioner) plus real-space passes (~180 XLA kernels at 105^2,
+about as much time as the transforms: benchmarks/README.md); the spectra are
 kept in the `(ky, kx)` layout that the column FFTs produce (`forward` / `inverse`
 below), so no spectral pass is strided. An earlier
 version spent ~10 ms of ~14 ms per iteration in nine Parseval inner products over the
@@ -119,6 +122,7 @@ import numpy as np
 from .coupled import StepConfig, StepResult
 from .precondition import block_preconditioner
 
+
 _SIGMA = 0.3  # bound update when the inner residual < sigma x residual at last update
 _STICK_TOL = 1e-10  # as tangential.py (float64; at least 64 eps of the dtype)
 _DEBUG = False
@@ -138,7 +142,8 @@ _FOLLOW = True  # slip cells kept on their disc after each step
 _SLIDE_FIX = True  # load fix without stick cells keeps cells on their discs
 _TRANSPOSED = True  # spectra in (ky, kx) layout inside the loop
 _COARSE_PRECOND = True  # preconditioner on the unpadded grid (periodic)
-_EARLY = 1  # always update the bound after the first iteration (the predictor's p is off)
+# Always update the bound after the first iteration (the predictor's p is off).
+_EARLY = 1
 # At that early update no slip cell is released: the bound moves by the whole load
 # increment in the same iteration, so the slip signs evaluated at the predictor's bound
 # are stale (Spence, 90 increments: ~700 cells released at the second iteration of
@@ -272,7 +277,8 @@ def joint_solve(
     """`joint_step`, also returning statistics: `applications` (equivalent coupled
     operator applications: a forward or an inverse transform of all components counts
     1/2; the preconditioner's unpadded transforms, about 1/4 of an application per
-    iteration, are not counted) and `counts` (unused (0), periodic resyncs, bound updates, restarts)."""
+    iteration, are not counted) and `counts` (unused (0), periodic resyncs, bound
+    updates, restarts)."""
     nd = config.nd
     if nd not in (1, 2) or not config.coupled:
         raise ValueError("joint_step needs a coupled step with nd = 1 or 2")
@@ -320,7 +326,8 @@ def joint_solve(
             operator, nn, xx, yy if nd == 2 else None, coarse=_COARSE_PRECOND,
             compliance=compliance, poisson=poisson)
 
-    if not grid.periodic and _TRANSPOSED:  # spectra in the (ky, kx) layout of `forward` below
+    # Spectra in the (ky, kx) layout of `forward` below.
+    if not grid.periodic and _TRANSPOSED:
         def _t(a):
             return None if a is None else jnp.swapaxes(a, -1, -2)
 
@@ -389,10 +396,12 @@ def joint_solve(
 
         def inverse(uh):
             field = jnp.fft.ifft(uh, axis=-1)[..., :nx]
-            return jnp.fft.irfft(jnp.swapaxes(field, -1, -2), n=2 * ny, axis=-1)[..., :ny]
+            field = jnp.swapaxes(field, -1, -2)
+            return jnp.fft.irfft(field, n=2 * ny, axis=-1)[..., :ny]
 
     def apply(x):
-        """Displacements `(u_z, u_t...)` of the traction `(p, q...)`: one application."""
+        """Displacements `(u_z, u_t...)` of the traction `(p, q...)`: one application
+        of the operator."""
         return inverse(k_full(forward(x)))
 
     def exact(x):
@@ -433,7 +442,8 @@ def joint_solve(
         raw = h + u[0]
         if load_n:
             dz = jnp.where(
-                n_contact > 0, _safe_div(jnp.sum(jnp.where(contact, raw, 0)), n_contact),
+                n_contact > 0,
+                _safe_div(jnp.sum(jnp.where(contact, raw, 0)), n_contact),
                 jnp.min(raw))
         else:
             dz = normal_target
@@ -449,14 +459,16 @@ def joint_solve(
         stick = stick_of(q, bound)
         n_stick = jnp.sum(stick)
         mean_stick = _safe_div(_sum2(jnp.where(stick[None], w, 0)), n_stick)
-        mean_contact = _safe_div(_sum2(jnp.where(contact_t[None], w, 0)), jnp.sum(contact_t))
+        mean_contact = _safe_div(_sum2(jnp.where(contact_t[None], w, 0)),
+                                 jnp.sum(contact_t))
         multiplier = jnp.where(n_stick > 0, mean_stick, mean_contact)
         dt = jnp.where(fc, multiplier, tangential_target)
         ds = w - dt[:, None, None]
         ds_mag = jnp.sqrt(_dot(ds, ds))
         inv = _inv_norm(q)
         slip_violation = ds + (ds_mag * inv)[None] * q
-        violation = jnp.where(stick[None], ds, jnp.where(contact_t[None], slip_violation, 0))
+        violation = jnp.where(stick[None], ds,
+                              jnp.where(contact_t[None], slip_violation, 0))
         num = jnp.sqrt(jnp.sum(violation * violation))
         res_t = jnp.where(num == 0, 0.0, _safe_div(num, scales[1]))
         res_t = jnp.where((num > 0) & (scales[1] == 0), jnp.inf, res_t)
@@ -471,7 +483,8 @@ def joint_solve(
     # ---- Loads and projections -----------------------------------------------------
     def rescale(p):
         total = area * jnp.sum(p)
-        return p * jnp.where(total > 0, normal_target / jnp.where(total > 0, total, 1), 0.0)
+        factor = normal_target / jnp.where(total > 0, total, 1)
+        return p * jnp.where(total > 0, factor, 0.0)
 
     def fix_load(q, bound):
         """Shift the stick cells (or, if none, all contact cells) to carry the load."""
@@ -518,7 +531,8 @@ def joint_solve(
         # proportion to the pressure (inside the discs while |F| < mu W).
         total_p = area * jnp.sum(p_init)
         ratio = jnp.where(fc, _safe_div(tangential_target, total_p), 0.0)
-        q_init = jnp.where(jnp.any(q_init != 0), q_init, ratio[:, None, None] * p_init[None])
+        q_init = jnp.where(jnp.any(q_init != 0), q_init,
+                           ratio[:, None, None] * p_init[None])
     q_init = settle_shear(q_init, bound_init, jnp.zeros((nx, ny), bool), sliding_init)
     x_init = jnp.concatenate([p_init[None], q_init])
     u_init, scales_init = exact(x_init)
@@ -551,7 +565,6 @@ def joint_solve(
         x, u, ev, bound, sliding = s["x"], s["u"], s["ev"], s["bound"], s["sliding"]
         p, q = x[0], x[1:]
         g, ds, stick = ev["g"], ev["ds"], ev["stick"]
-        residual = ev["residual"]
         contact = p > 0
         n_contact = jnp.sum(contact)
         contact_t = bound > 0
@@ -570,7 +583,8 @@ def joint_solve(
             rotate = slip_cells & ~release & ~sliding
             tt = jnp.where(rotate[None], jnp.stack([-q_hat[1], q_hat[0]]), 0)
             # Disc curvature lambda / B of the rotation of a slip cell.
-            curv_disc = jnp.where(rotate, _safe_div(jnp.maximum(lam_raw, 0.0), bound), 0.0)
+            curv_disc = jnp.where(
+                rotate, _safe_div(jnp.maximum(lam_raw, 0.0), bound), 0.0)
         else:
             rotate = jnp.zeros_like(contact)
             tt = jnp.zeros_like(q)
@@ -670,7 +684,8 @@ def joint_solve(
             p_new = rescale(p_new)
         # Slip cells that stay slip are put back ON their disc (the previous change
         # in the step may point inside it); the others are projected.
-        keep_on = (slip_cells & ~release & ~sliding) if _FOLLOW else jnp.zeros_like(contact)
+        keep_on = ((slip_cells & ~release & ~sliding) if _FOLLOW
+                   else jnp.zeros_like(contact))
         q_new = settle_shear(q_step, bound, keep_on, sliding)
         # The bound update decided at the end of the last iteration: the bound
         # becomes mu p of this iterate and its slip cells follow their discs, inside
@@ -723,7 +738,8 @@ def joint_solve(
         u_new, scales_new, ev_new = jax.lax.cond(
             final, certify, lambda: (u_new, scales_new, ev_new))
         if _DEBUG:
-            jax.debug.print("   bound updated: {} residual {:.2e}", upd, ev_new["residual"])
+            jax.debug.print("   bound updated: {} residual {:.2e}", upd,
+                            ev_new["residual"])
         want = (ev_new["residual"] <= _SIGMA * res_ref) | (
             ev_new["residual"] <= rtol) | exhausted(it, since) | (it <= _EARLY)
         applications = applications + 1.5 * final
