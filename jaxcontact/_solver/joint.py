@@ -693,12 +693,13 @@ def joint_solve(
         upd = s["want"]
         bound_new = jnp.where(upd, friction * p_new, bound)
         sliding_new = jnp.where(upd, sliding_of(p_new), sliding)
+
+        # A `cond`, not a `where`: the second projection (and its load fix) runs only on
+        # the iterations that update the bound (about half).
         def move_to_bound(q_):
             follow = contact_t & ~stick_of(q_, bound) & (p_new > 0) & ~sliding_new
             return settle_shear(q_, bound_new, follow, sliding_new)
 
-        # A `cond`, not a `where`: the second projection (and its load fix) runs only on
-        # the iterations that update the bound (about half).
         q_new = jax.lax.cond(upd, move_to_bound, lambda q_: q_, q_new)
         x_new = jnp.concatenate([p_new[None], q_new])
 
