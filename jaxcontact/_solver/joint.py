@@ -45,6 +45,8 @@ certified with exact displacements and residual scales. The bound is always upda
 after the first iteration (`_EARLY`): the warm start's pressure is off by the load
 increment, and converging the inner problem for its bound was wasted (Spence, 30
 increments: 759 -> 668 iterations).
+Cells that came into contact since the last update start on their new disc, opposite
+to their slip increment (`_ENTRY_SLIP`: contact edges slip).
 
 **Inner iteration** (projected, preconditioned, locally optimal CG):
 
@@ -155,6 +157,12 @@ _HOLD_EARLY = True
 # Cattaneo-Mindlin "full" in one step unchanged (at 1e-4: 77 -> 83 iterations at
 # 256^2 over 4 a, F = 0.9 mu W).
 _FFT_RES = 3e-5
+# Cells that entered the contact since the last bound update start on their new disc,
+# opposite to their slip increment (contact edges slip: p, hence the bound, vanishes
+# there), rather than at q = 0, where they would count as stick until their slip
+# shows (Spence, 90 increments: 1255 -> 1201 iterations; Cattaneo-Mindlin "full" in
+# one step 46/54/56/77 -> 45/50/59/60).
+_ENTRY_SLIP = True
 
 
 def _safe_div(a, b):
@@ -698,6 +706,10 @@ def joint_solve(
         # the iterations that update the bound (about half).
         def move_to_bound(q_):
             follow = contact_t & ~stick_of(q_, bound) & (p_new > 0) & ~sliding_new
+            if _ENTRY_SLIP:
+                entering = (~contact_t) & (p_new > 0) & ~sliding_new
+                q_ = jnp.where(entering[None], -ds * _inv_norm(ds)[None], q_)
+                follow = follow | entering
             return settle_shear(q_, bound_new, follow, sliding_new)
 
         q_new = jax.lax.cond(upd, move_to_bound, lambda q_: q_, q_new)
