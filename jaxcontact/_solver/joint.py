@@ -724,7 +724,8 @@ def joint_solve(
         sliding_new = jnp.where(upd, sliding_of(p_new), sliding)
 
         # A `cond`, not a `where`: the second projection (and its load fix) runs only on
-        # the iterations that update the bound (about half).
+        # the iterations that update the bound (Spence: 604 of 1046);
+        # entering cells are put on their discs there too (`_ENTRY_SLIP`).
         def move_to_bound(q_):
             follow = contact_t & ~stick_of(q_, bound) & (p_new > 0) & ~sliding_new
             if _ENTRY_SLIP:
