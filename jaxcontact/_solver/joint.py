@@ -51,8 +51,10 @@ to their slip increment (`_ENTRY_SLIP`: contact edges slip).
 
 **Inner iteration** (projected, preconditioned, locally optimal CG):
 
-- free variables: `p` on contact cells (Polonsky & Keer: clip at zero after the step,
-  re-entry of penetrating cells, mean-free directions and rescaling for load control);
+- free variables: `p` on contact cells and on penetrating cells out of contact
+  (Polonsky & Keer's re-entry, here inside the subspace: the exact minimisation sets
+  their pressure; clip at zero after the step, mean-free directions and rescaling for
+  load control);
   `q` on stick cells and on released slip cells (wrong-sign slip) as vectors, and the
   rotation of slip cells along their disc, with the disc curvature `lambda / B` in the
   preconditioner and the step (`tangential.py`);
@@ -81,7 +83,7 @@ to their slip increment (`_ENTRY_SLIP`: contact edges slip).
   direction are evaluated in Fourier space (Parseval: one forward transform of `z`,
   one pass over its spectrum with the Parseval weights folded into the symbols); those
   with the previous change use its displacement, kept in real space;
-- the whole change of `x` after the projections (clipping, re-entry, rescaling,
+- the whole change of `x` after the projections (clipping, rescaling,
   projection onto the discs, load fixes) is transformed (forward and inverse), so the
   displacement is exact at every iteration (up to round-off): 1.5 coupled operator
   applications per iteration plus the preconditioner's unpadded transforms. Three
@@ -176,13 +178,6 @@ _FFT_RES = 1e-4
 # shows (Spence, 90 increments: 1255 -> 1201 iterations; Cattaneo-Mindlin "full" in
 # one step 46/54/56/77 -> 45/50/59/60).
 _ENTRY_SLIP = True
-# Re-entering cells on a diagonal iteration take this fraction of the step's local
-# pressure (the diagonal estimate overshoots: the neighbours share the load). After
-# the first iteration of a Spence increment the residual is 5.0e-4 at 1, 2.5e-4 at 0.4
-# (9e-5 before it). Spence 90 x 105^2 1075 -> 1046 iterations; 9 coupled scenes
-# (Spence ramps at 105^2 and 64^2, Cattaneo-Mindlin steps and a ramp): 2832 / 2799 /
-# 2780 / 2757 at 1 / 0.5 / 0.25 / 0.1.
-_DIAG_REENTRY = 0.25
 
 
 def _safe_div(a, b):
@@ -594,8 +589,14 @@ def joint_solve(
         p, q = x[0], x[1:]
         g, ds, stick = ev["g"], ev["ds"], ev["stick"]
         contact = p > 0
-        n_contact = jnp.sum(contact)
         contact_t = bound > 0
+        # The step's pressure variables: contact cells and the penetrating cells out of
+        # contact (Polonsky-Keer's re-entry), whose gradient `g < 0` enters the subspace
+        # like the others, so the exact minimisation below, with the load constraint,
+        # sets their pressure (it replaced a local estimate scaled by a tuned factor:
+        # Spence, 90 x 105^2, 1046 -> 1000 iterations).
+        overlap = (~contact) & (g < 0)
+        free_p = contact | overlap
 
         # -- active sets ------------------------------------------------------------
         q_hat = q * ev["inv_norm"][None]
@@ -619,7 +620,7 @@ def joint_solve(
             curv_disc = jnp.zeros_like(p)
 
         # -- reduced gradient, preconditioned load-preserving directions -------------
-        r_p = jnp.where(contact, g, 0)
+        r_p = jnp.where(free_p, g, 0)
         r_q = jnp.where(full[None], ds, tt * _dot(tt, ds)[None])
         weight = jnp.where(full, 1.0, jnp.where(
             rotate, c_tt / (c_tt + curv_disc) if _CURV_PRECOND else 1.0, 0.0))
@@ -636,13 +637,13 @@ def joint_solve(
             use_fft = s["steady"]
             m_r = jax.lax.cond(use_fft, precondition, jnp.zeros_like,
                                jnp.concatenate([r_p[None], r_q]))
-            z_p = jnp.where(use_fft, jnp.where(contact, m_r[0], 0), z_p_diag)
+            z_p = jnp.where(use_fft, jnp.where(free_p, m_r[0], 0), z_p_diag)
             pr = jnp.where(use_fft, weight[None] * jnp.where(
                 full[None], m_r[1:], tt * _dot(tt, m_r[1:])[None]), pr_diag)
         else:
             z_p, pr = z_p_diag, pr_diag
         if load_n:
-            z_p = jnp.where(contact, z_p - _safe_div(jnp.sum(z_p), n_contact), 0)
+            z_p = jnp.where(free_p, z_p - _safe_div(jnp.sum(z_p), jnp.sum(free_p)), 0)
         if any_force:
             # Oblique projection onto load-preserving directions (tangential.py):
             # z = P r - P B (B^T P B)^{-1} B^T P r, B c = c on full cells and its
@@ -695,19 +696,11 @@ def joint_solve(
         # -- projections -------------------------------------------------------------
         x_step = x + step
         p_step, q_step = x_step[0], x_step[1:]
-        # Cells out of contact stay out unless they penetrate (re-entry below): the
-        # previous change in the step would bring back the cells it just clipped, a
-        # cycle on the contact set (nu = 0.5, where the pressure alone moves: a 30-step
-        # ramp at 105^2 had steps of ~160 iterations, stopped by `_STALL`, now 10-13).
-        p_new = jnp.where(contact, jnp.maximum(p_step, 0), 0)
-        overlap = (~contact) & (g < 0)  # re-entry of penetrating cells
-        # Re-entering cells: the step's local pressure (the FFT direction's scale
-        # differs from the diagonal one's; -g / k_zz is the cell's own compliance),
-        # damped on diagonal steps (`_DIAG_REENTRY`).
-        reentry = _DIAG_REENTRY * a1 * w_p * g
-        if fft_precond:
-            reentry = jnp.where(s["steady"], -g / c_zz, reentry)
-        p_new = jnp.where(overlap, jnp.maximum(reentry, 0.0), p_new)
+        # Cells out of contact stay out unless they penetrate (`free_p`): the previous
+        # change in the step would bring back the cells it just clipped, a cycle on the
+        # contact set (nu = 0.5, where the pressure alone moves: a 30-step ramp at
+        # 105^2 had steps of ~160 iterations, stopped by `_STALL`, now 10-13).
+        p_new = jnp.where(free_p, jnp.maximum(p_step, 0), 0)
         if load_n:
             p_new = jnp.where(jnp.sum(p_new) > 0, p_new, p_init)
             p_new = rescale(p_new)
