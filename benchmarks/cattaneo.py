@@ -9,7 +9,8 @@ Cases (SI units; rigid sphere R = 10 mm, W = 0.15 N, G = 1 MPa, nu = 0.3):
 2. The issue's two timed Cattaneo-Mindlin cases: 105^2 cells over 2.3 a and 256^2 over
    5.5 a (about 45 cells per contact radius).
 3. The ratio of a frictional solve to a normal solve on the same 256^2 grid, fully
-   coupled ("full") and uncoupled ("none").
+   coupled ("full") and uncoupled ("none"), and the stick radius of each against
+   Cattaneo-Mindlin's (which only the uncoupled solve has).
 4. Spence (coupling "full", nu = 0.3, mu = 0.2): the normal load applied in 90
    increments on 105^2 cells over 2.3 a; the stick radius c/a at the end. Also in
    float32 (its default rtol 1e-5), whose c/a is compared with float64's, and in
@@ -103,11 +104,24 @@ def normal_vs_coupled(n=256, width=4.0, mu=0.3, repeats=3):
                          normal=jc.Force(W), x=jc.Force(0.5 * mu * W), friction=mu,
                          coupling="none")
     op_none = jc.HalfSpace(grid, "none", tangential_y=False)
-    uncoupled_s, _ = timed(lambda: jc.solve(uncoupled, operator=op_none), repeats)
+    uncoupled_s, sol_none = timed(lambda: jc.solve(uncoupled, operator=op_none),
+                                  repeats)
+    # The stick radius of each against Cattaneo-Mindlin's (1 - F / (mu W))^(1/3) a, in
+    # cells: the target's "stick radius within one cell" describes the uncoupled solve
+    # (the coupling shrinks the stick zone by many cells at nu = 0.3).
+    dx = float(grid.spacing[0])
+    c_ref = A * 0.5 ** (1 / 3)
+
+    def c_error(s):
+        return float(np.sqrt(float(s.stick[0].sum()) * float(grid.cell_area) / np.pi)
+                - c_ref) / dx
+
     return dict(n=n, normal_s=normal_s, coupled_full_s=coupled_s,
                 ratio=coupled_s / normal_s, rounds=int(sol.rounds[0]),
                 iterations=int(sol.iterations[0]), converged=bool(sol.converged[0]),
-                uncoupled_s=uncoupled_s, ratio_uncoupled=uncoupled_s / normal_s)
+                uncoupled_s=uncoupled_s, ratio_uncoupled=uncoupled_s / normal_s,
+                stick_radius_error_cells_full=c_error(sol),
+                stick_radius_error_cells_uncoupled=c_error(sol_none))
 
 
 def coupled_fft_floor(n, dtype, repeats=5):
