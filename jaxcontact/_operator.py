@@ -227,23 +227,47 @@ class HalfSpace(eqx.Module):
 
     # -- application -----------------------------------------------------------------
 
-    def normal_spectrum(self, poisson):
-        """Real spectrum of the zz block for this Poisson's ratio."""
+    def with_transposed_spectra(self) -> "HalfSpace":
+        """This operator, its spectra also held in the `(ky, kx)` layout (keys `"t:"`
+        + name) that the joint coupled solver works in (`_solver/joint.py`). Build it
+        once, outside a time loop: XLA does not hoist the transposes out of a loop by
+        itself (the joint solver's setup at 105^2 took ~3 ms of transposes per step).
+        Periodic grids (no such layout): unchanged."""
+        if self.grid.periodic:
+            return self
+        extra = {"t:" + k: jnp.swapaxes(v, -1, -2) for k, v in self.spectra.items()
+                 if not k.startswith("t:")}
+        return eqx.tree_at(lambda op: op.spectra, self, {**self.spectra, **extra})
+
+    def _spectrum(self, name, transposed=False):
+        """The raw spectrum `name`, in the `(ky, kx)` layout if `transposed` (held by
+        `with_transposed_spectra`, else transposed here)."""
+        if not transposed:
+            return self.spectra[name]
+        held = self.spectra.get("t:" + name)
+        return jnp.swapaxes(self.spectra[name], -1, -2) if held is None else held
+
+    def normal_spectrum(self, poisson, transposed=False):
+        """Real spectrum of the zz block for this Poisson's ratio (`transposed`: in
+        the `(ky, kx)` layout)."""
         if "zz" in self.spectra:
-            return (1 - poisson) * self.spectra["zz"]
-        return (1 - poisson) * (self.spectra["s1"] + self.spectra["s2"])
+            return (1 - poisson) * self._spectrum("zz", transposed)
+        return (1 - poisson) * (self._spectrum("s1", transposed)
+                                + self._spectrum("s2", transposed))
 
     def apply_normal(self, pressure: Float[Array, "nx ny"], poisson) -> Float[Array, "nx ny"]:
         """Normal displacement `u_z` [length] due to `pressure`, unit shear modulus."""
         return self.inverse(self.forward(pressure) * self.normal_spectrum(poisson))
 
-    def tangential_blocks(self, poisson):
-        """Real spectra `(xx, xy, yy)` of the tangential-tangential blocks."""
-        s, nu = self.spectra, poisson
-        xx = (1 - nu) * s["s1"] + s["s2"]
+    def tangential_blocks(self, poisson, transposed=False):
+        """Real spectra `(xx, xy, yy)` of the tangential-tangential blocks
+        (`transposed`: in the `(ky, kx)` layout)."""
+        nu = poisson
+        s1, s2 = self._spectrum("s1", transposed), self._spectrum("s2", transposed)
+        xx = (1 - nu) * s1 + s2
         if not self.tangential_y:
             return xx, None, None
-        return xx, nu * s["sxy"], s["s1"] + (1 - nu) * s["s2"]
+        return xx, nu * self._spectrum("sxy", transposed), s1 + (1 - nu) * s2
 
     def apply_tangential(self, shear: Float[Array, "nd nx ny"], poisson, blocks=None):
         """Tangential displacements `(nd, nx, ny)` due to shear `(nd, nx, ny)`.
@@ -259,13 +283,14 @@ class HalfSpace(eqx.Module):
         uy = xy * hat[0] + yy * hat[1]
         return self.inverse(jnp.stack([ux, uy]))
 
-    def coupling_spectra(self, poisson):
-        """Imaginary parts `(zx, zy)` of the `u_z <- q` spectra (`xz = -zx`), or None."""
+    def coupling_spectra(self, poisson, transposed=False):
+        """Imaginary parts `(zx, zy)` of the `u_z <- q` spectra (`xz = -zx`), or None
+        (`transposed`: in the `(ky, kx)` layout)."""
         if self.coupling not in ("x", "full"):
             return None, None
         c = 0.5 * (1 - 2 * poisson)
-        zx = c * self.spectra["szx"]
-        zy = c * self.spectra["szy"] if self.coupling == "full" else None
+        zx = c * self._spectrum("szx", transposed)
+        zy = c * self._spectrum("szy", transposed) if self.coupling == "full" else None
         return zx, zy
 
     def apply(self, traction: Float[Array, "3 nx ny"], poisson) -> Float[Array, "3 nx ny"]:

@@ -84,6 +84,9 @@ def _solve(scene: Scene, operator: HalfSpace, config: StepConfig, history_kind: 
     use_total_slip = scene.slip == "total"
     hereditary = _history_for(material, times, history_kind, scheme)
     steps_dt = jnp.concatenate([jnp.zeros((1,), dtype), jnp.diff(times)])
+    if config.coupled and config.nd > 0 and config.method == "joint":
+        # The joint solver's layout, built once here rather than in every step.
+        operator = operator.with_transposed_spectra()
 
     def step(carry, inputs):
         p_prev, q_prev, s_prev, p_prev2, q_prev2, h_state, seed = carry

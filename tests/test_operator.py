@@ -343,3 +343,26 @@ def test_float32_matches_float64(periodic, coupling):
         w32 = op32.apply_normal(jnp.asarray(t[2], dtype=jnp.float32), poisson)
         assert w32.dtype == jnp.float32
         assert rel_err(np.asarray(w32, dtype=np.float64), w64) < 1e-5
+
+
+@pytest.mark.parametrize("coupling", ["x", "full"])
+def test_transposed_spectra_are_the_blocks_in_ky_kx_layout(coupling):
+    """`with_transposed_spectra` (built by `jc.solve` for the joint solver) holds every
+    block in the `(ky, kx)` layout: each equals the transpose of the `(kx, ky)` one,
+    exactly (a transpose moves entries), whether held or transposed on the fly; the
+    `(kx, ky)` blocks are unchanged, and periodic grids get the operator itself."""
+    size, length = GRIDS["8x6"]
+    op = jc.HalfSpace(jc.Grid(size, length), coupling)
+    held = op.with_transposed_spectra()
+    nu = 0.3
+    for name in ("normal_spectrum", "tangential_blocks", "coupling_spectra"):
+        plain = jax.tree_util.tree_leaves(getattr(op, name)(nu))
+        for source in (op, held):  # on the fly, and held
+            swapped = jax.tree_util.tree_leaves(getattr(source, name)(nu, transposed=True))
+            assert len(swapped) == len(plain) > 0
+            for a, b in zip(plain, swapped):
+                np.testing.assert_array_equal(np.swapaxes(np.asarray(a), -1, -2), b)
+        for a, b in zip(plain, jax.tree_util.tree_leaves(getattr(held, name)(nu))):
+            np.testing.assert_array_equal(a, b)
+    periodic = jc.HalfSpace(jc.Grid(size, length, periodic=True), coupling)
+    assert periodic.with_transposed_spectra() is periodic
