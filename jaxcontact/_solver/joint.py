@@ -325,14 +325,20 @@ def joint_solve(
     stick_tol = max(_STICK_TOL, 64 * float(jnp.finfo(dtype).eps))
 
     # ---- The coupled operator: symbols (unit-modulus spectra x compliance) ---------
-    nn = compliance * operator.normal_spectrum(poisson)
-    xx, xy, yy = operator.tangential_blocks(poisson)
-    xx = compliance * xx
-    if nd == 2:
-        xy, yy = compliance * xy, compliance * yy
-    zx, zy = operator.coupling_spectra(poisson)
-    izx = 1j * compliance * zx  # u_z <- q_x; u_x <- p is its negative (reciprocity)
-    izy = 1j * compliance * zy if (nd == 2 and zy is not None) else None
+    def symbols(transposed):
+        """`(nn, xx, xy, yy, zx, zy, izx, izy)` in the `(kx, ky)` layout of
+        `operator.forward`, or `transposed` to `(ky, kx)`."""
+        nn = compliance * operator.normal_spectrum(poisson, transposed)
+        xx, xy, yy = operator.tangential_blocks(poisson, transposed)
+        xx = compliance * xx
+        if nd == 2:
+            xy, yy = compliance * xy, compliance * yy
+        zx, zy = operator.coupling_spectra(poisson, transposed)
+        izx = 1j * compliance * zx  # u_z <- q_x; u_x <- p is its negative (reciprocity)
+        izy = 1j * compliance * zy if (nd == 2 and zy is not None) else None
+        return nn, xx, xy, yy, zx, zy, izx, izy
+
+    nn, xx, xy, yy, zx, zy, izx, izy = symbols(False)
     w_ky, n_par = _parseval_weights(grid)
     w_ky = jnp.asarray(w_ky, dtype)[None, :]  # (1, ky): broadcasts over kx
     # Self-compliances (the operator's diagonal): the kernels at zero offset.
@@ -354,14 +360,7 @@ def joint_solve(
     # `jc.solve` builds before its time loop; transposing the symbols here cost ~3 ms
     # per step at 105^2, Spence 4.62 -> 4.22 s on one core).
     if not grid.periodic and _TRANSPOSED:
-        nn = compliance * operator.normal_spectrum(poisson, transposed=True)
-        xx, xy, yy = operator.tangential_blocks(poisson, transposed=True)
-        xx = compliance * xx
-        if nd == 2:
-            xy, yy = compliance * xy, compliance * yy
-        zx, zy = operator.coupling_spectra(poisson, transposed=True)
-        izx = 1j * compliance * zx
-        izy = 1j * compliance * zy if (nd == 2 and zy is not None) else None
+        nn, xx, xy, yy, zx, zy, izx, izy = symbols(True)
         w_ky = jnp.swapaxes(w_ky, -1, -2)
     # Parseval weights folded into the (real) symbols once, outside the loop: the
     # quadratic forms of a direction's spectrum are then plain sums over the spectrum
