@@ -358,7 +358,8 @@ def test_transposed_spectra_are_the_blocks_in_ky_kx_layout(coupling):
     for name in ("normal_spectrum", "tangential_blocks", "coupling_spectra"):
         plain = jax.tree_util.tree_leaves(getattr(op, name)(nu))
         for source in (op, held):  # on the fly, and held
-            swapped = jax.tree_util.tree_leaves(getattr(source, name)(nu, transposed=True))
+            swapped = jax.tree_util.tree_leaves(
+                getattr(source, name)(nu, transposed=True))
             assert len(swapped) == len(plain) > 0
             for a, b in zip(plain, swapped):
                 np.testing.assert_array_equal(np.swapaxes(np.asarray(a), -1, -2), b)
