@@ -63,8 +63,13 @@ to their slip increment (`_ENTRY_SLIP`: contact edges slip).
   normal one, on the unpadded grid, raised to the continuous half-space symbols where
   the wrapped kernel's are too small; inverting the whole symbol matrix, coupling and
   `xy` included, saved 3 % of the iterations at a higher cost), restricted to the
-  free variables, the rotating cells scaled by `C K_tt(0) / (C K_tt(0) +
-  curvature)` (non-periodic grids only: see `fft_precond`). Right after slip cells
+  free variables, the rotating cells scaled by `w = C K_tt(0) / (C K_tt(0) +
+  curvature)` (non-periodic grids only: see `fft_precond`); after the first
+  iterations of a step, a rotating cell's direction interpolates by `w` between the
+  full-plane inverse and the diagonal `1 / C K_tt(0)` before that scaling (where the
+  curvature dominates, the operator's non-local part hardly matters:
+  `_ROT_BLEND_AFTER`; a one-step Cattaneo-Mindlin load "full" 47 -> 34 iterations at
+  256^2 over 4 a). Right after slip cells
   were released, unless the residual is already below `_FFT_RES`, the diagonal
   preconditioner (`p` by `1 / C K_zz(0)`, `q` by `1 / (C K_tt(0) + curvature)`) is
   used instead. Then the mean removal (normal
@@ -172,6 +177,17 @@ _HOLD_EARLY = True
 # the same totals as 1e-4, 1 (always the FFT directions) 323 iterations for one
 # Cattaneo-Mindlin step at 105^2 (F = 0.9 mu W).
 _FFT_RES = 1e-4
+# The preconditioner of rotating slip cells interpolates between the operator's
+# full-plane inverse and its diagonal by their disc curvature (see `body`) after this
+# many iterations of a step (`None`: the full-plane inverse always). Measured, float64,
+# iterations of one Cattaneo-Mindlin step "full" (F = 0.5 / 0.9 mu W; 105^2 over 2.3 a,
+# 256^2 over 4 a) / Spence 90 x 105^2 / three Spence ramps of 30 increments at 64^2
+# over 3 a (mu 0.1, 0.4; nu 0.1) / a 10-step Cattaneo-Mindlin ramp at 64^2:
+# None: 43, 50, 47, 53 / 1000 / 356, 461, 387 / 150; 4: 28, 33, 34, 29 / 1005 /
+# 328, 464, 378 / 143; from the first iteration: 24, 24, 25, 26 / 1071 / 350, 465,
+# 389 / 155; 3, 5, 8: Spence 1075, 998, 1004. The diagonal alone (no full-plane
+# inverse on rotating cells) 31, 25, 35, 26 / 2150.
+_ROT_BLEND_AFTER = _EARLY + 1
 # Cells that entered the contact since the last bound update start on their new disc,
 # opposite to their slip increment (contact edges slip: p, hence the bound, vanishes
 # there), rather than at q = 0, where they would count as stick until their slip
@@ -644,8 +660,21 @@ def joint_solve(
             m_r = jax.lax.cond(use_fft, precondition, jnp.zeros_like,
                                jnp.concatenate([r_p[None], r_q]))
             z_p = jnp.where(use_fft, jnp.where(free_p, m_r[0], 0), z_p_diag)
-            pr = jnp.where(use_fft, weight[None] * jnp.where(
-                full[None], m_r[1:], tt * _dot(tt, m_r[1:])[None]), pr_diag)
+            rot = tt * _dot(tt, m_r[1:])[None]
+            if _ROT_BLEND_AFTER is not None:
+                # A rotating cell's Hessian is the operator plus its disc curvature
+                # lambda / B. Where the curvature dominates (a large slip, e.g. a
+                # Cattaneo-Mindlin load in one step: median lambda / B = 24 c_tt at
+                # 256^2), the operator's diagonal `1 / c_tt` describes it better than
+                # its full-plane inverse: the two are interpolated with the curvature
+                # weight `c_tt / (c_tt + lambda / B)` (then scaled by it as before).
+                # Not in the first iterations of a step, while the bound still moves
+                # by the load increment and lambda / B is the predictor's.
+                diagonal = tt * _dot(tt, r_q)[None] / c_tt
+                blend = weight[None] * rot + (1 - weight)[None] * diagonal
+                rot = jnp.where(s["it"] > _ROT_BLEND_AFTER, blend, rot)
+            pr = jnp.where(use_fft, weight[None] * jnp.where(full[None], m_r[1:], rot),
+                           pr_diag)
         else:
             z_p, pr = z_p_diag, pr_diag
         if load_n:
