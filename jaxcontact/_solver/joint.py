@@ -666,6 +666,9 @@ def joint_solve(
                                jnp.concatenate([r_p[None], r_q]))
             z_p = jnp.where(use_fft, jnp.where(free_p, m_r[0], 0), z_p_diag)
             rot = tt * _dot(tt, m_r[1:])[None]
+            # The Jacobi direction `r / c_tt` (on the scale of the full-plane inverse);
+            # `r_q` is already tangential on rotating cells.
+            jacobi = r_q / c_tt
             if _ROT_BLEND_AFTER is not None:
                 # A rotating cell's Hessian is the operator plus its disc curvature
                 # lambda / B. Where the curvature dominates (a large slip, e.g. a
@@ -675,20 +678,19 @@ def joint_solve(
                 # weight `c_tt / (c_tt + lambda / B)` (then scaled by it as before).
                 # Not in the first iterations of a step, while the bound still moves
                 # by the load increment and lambda / B is the predictor's.
-                diagonal = tt * _dot(tt, r_q)[None] / c_tt
-                blend = weight[None] * rot + (1 - weight)[None] * diagonal
+                blend = weight[None] * rot + (1 - weight)[None] * jacobi
                 rot = jnp.where(s["it"] > _ROT_BLEND_AFTER, blend, rot)
             pr = jnp.where(use_fft, weight[None] * jnp.where(full[None], m_r[1:], rot),
                            pr_diag)
             if nd == 2:
                 # Right after a release only the released cells take the diagonal
-                # direction (Jacobi, `1 / c_tt`, to match the full-plane inverse's
-                # scale): one-step Cattaneo-Mindlin loads "full" 28, 33, 34, 29 -> 22,
-                # 22, 26, 24 iterations (`_ROT_BLEND_AFTER`'s scenes; the ramps within
-                # 1 %). With one shear component ("x") it made a load near gross
-                # sliding slower (nu 0.1, F = 0.99 mu W, 64^2: 31 -> 263), so there
-                # every variable keeps the diagonal direction after a release.
-                pr = jnp.where(release[None] & ~s["steady"], pr_diag / c_tt, pr)
+                # (Jacobi) direction: one-step Cattaneo-Mindlin loads "full" 28, 33,
+                # 34, 29 -> 22, 22, 26, 24 iterations (`_ROT_BLEND_AFTER`'s scenes;
+                # the ramps within 1 %). With one shear component ("x") it made a
+                # load near gross sliding slower (nu 0.1, F = 0.99 mu W, 64^2: 31 ->
+                # 263), so there every variable keeps the diagonal direction after a
+                # release.
+                pr = jnp.where(release[None] & ~s["steady"], jacobi, pr)
         else:
             z_p, pr = z_p_diag, pr_diag
         if load_n:
