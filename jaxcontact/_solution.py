@@ -20,7 +20,9 @@ class Solution(eqx.Module):
       `tangential_displacement`: `(nt, 2)` rigid tangential displacement
       `(delta_x, delta_y)` [length] (0 in a direction that is not solved).
     - `stick_ratio`: `(nt,)` stick area / contact area (0 with no contact).
-    - `sliding`: `(nt,)` gross sliding (contact but no stick cell).
+    - `sliding`: `(nt,)` gross sliding (contact but no stick cell). Under strong
+      coupling a load below `mu W` can leave no stick cell too (the shear directions
+      fan out; e.g. nu = 0.1, F = 0.99 mu W in one step): it is flagged the same way.
     - `converged`, `iterations`, `rounds`, `residual`: `(nt,)` per-step solver status
       (inner CG iterations summed over the normal/tangential rounds).
     - `edge_contact` (property): `(nt,)` contact reaches the outer ring of cells.

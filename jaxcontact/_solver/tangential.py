@@ -78,6 +78,58 @@ def project(q, bound):
     return q * factor[None]
 
 
+def slip_multiplier(w, q_hat, contact, force_control, target):
+    """The rigid tangential displacement `delta_t` [length], `(nd,)`, when NO contact
+    cell sticks: every contact cell slips, `w_i - delta_t = -lambda_i q^_i` with
+    `lambda_i >= 0`, which fixes `delta_t` through the slip DIRECTIONS (the mean of
+    `w` over the contact, used before, is off by the mean of `lambda q^`, so an
+    all-slip solution could never pass the convergence test).
+
+    - `w`: `(nd, nx, ny)` tangential displacement `A q + b` [length]; `q_hat`: the
+      unit shear directions (0 where `q = 0`); `contact`: `(nx, ny)` cells with a
+      friction bound; `force_control`: `(nd,)` bool; `target`: `(nd,)`, `delta_t`
+      of the displacement-controlled directions.
+
+    Load-controlled components: the least-squares fit `sum_i P_i (w_i - delta_t) = 0`,
+    `P_i = I - q^_i q^_i^T` (the part of the slip not along `q^_i`), regularised
+    towards the mean of `w` where it is undetermined (every shear parallel). With one
+    shear component `P = 0`; the signs then bound `delta_t` (`>= w_i` where `q_i > 0`,
+    `<= w_i` where `q_i < 0`) and the mean is clipped to that interval (its midpoint
+    if it is empty). Displacement-controlled components: `target`.
+    """
+    nd = w.shape[0]
+    dtype = w.dtype
+    force_control = jnp.asarray(force_control)
+    cells = contact[None]
+    n_c = jnp.sum(contact).astype(dtype)
+    mean_w = _safe_div(jnp.sum(jnp.where(cells, w, 0), axis=(1, 2)), n_c)
+    if nd == 1:
+        above = jnp.max(jnp.where(contact & (q_hat[0] > 0), w[0], -jnp.inf))
+        below = jnp.min(jnp.where(contact & (q_hat[0] < 0), w[0], jnp.inf))
+        fit = jnp.where(above <= below, jnp.clip(mean_w[0], above, below),
+                        0.5 * (above + below))
+        fit = jnp.where(jnp.isfinite(fit), fit, mean_w[0])[None]
+        return jnp.where(force_control, fit, target)
+    # Only for an exactly undetermined fit (all shear parallel, e.g. a first guess
+    # q ~ p F / |F|): far below the rounding of `m` (~ eps n_c), which a larger
+    # weight would bias (float32 at 128^2, F = 0.99 mu W: 16 eps n_c floored the
+    # residual at 1.1e-5, 1238 iterations with the fallbacks, against 13).
+    eps = float(jnp.finfo(dtype).eps) ** 2 * n_c
+    along = jnp.sum(q_hat * w, axis=0)
+    m = jnp.stack([jnp.stack([
+        jnp.sum(jnp.where(contact, float(i == j) - q_hat[i] * q_hat[j], 0.0))
+        + eps * (i == j) for j in range(nd)]) for i in range(nd)])
+    across = jnp.where(cells, w - q_hat * along[None], 0)
+    rhs = jnp.sum(across, axis=(1, 2)) + eps * mean_w
+    fixed = jnp.where(force_control, 0.0, target)
+    rhs = jnp.where(force_control, rhs - m @ fixed, target)
+    both = force_control[:, None] & force_control[None, :]
+    m = jnp.where(both, m, jnp.eye(nd, dtype=dtype))
+    det = m[0, 0] * m[1, 1] - m[0, 1] * m[1, 0]  # 2 x 2 in closed form (no LAPACK call)
+    return jnp.stack([m[1, 1] * rhs[0] - m[0, 1] * rhs[1],
+                      m[0, 0] * rhs[1] - m[1, 0] * rhs[0]]) / det
+
+
 def tangential_lipschitz(blocks):
     """Largest eigenvalue of the tangential operator from its spectra `(xx, xy, yy)`.
 
@@ -153,14 +205,12 @@ def tangential_cg(
         stick = stick_of(q)
         n_stick = jnp.sum(stick)
         mean_stick = _safe_div(jnp.sum(jnp.where(stick[None], w, 0), axis=(1, 2)), n_stick)
-        mean_contact = _safe_div(
-            jnp.sum(jnp.where(contact[None], w, 0), axis=(1, 2)), jnp.sum(contact)
-        )
-        multiplier = jnp.where(n_stick > 0, mean_stick, mean_contact)
-        delta = jnp.where(jnp.asarray(force_control), multiplier, target)
-        ds = w - delta[:, None, None]
         mag_q = _norm(q)
         q_hat = q * _safe_div(1.0, mag_q)[None]
+        all_slip = slip_multiplier(w, q_hat, contact, force_control, target)
+        multiplier = jnp.where(n_stick > 0, mean_stick, all_slip)
+        delta = jnp.where(jnp.asarray(force_control), multiplier, target)
+        ds = w - delta[:, None, None]
         slip_violation = ds + _norm(ds)[None] * q_hat
         violation = jnp.where(stick[None], ds, jnp.where(contact[None], slip_violation, 0))
         scale = jnp.sqrt(jnp.sum((w - b) ** 2)) + jnp.sqrt(jnp.sum(jnp.where(contact[None], b, 0) ** 2))
