@@ -212,6 +212,14 @@ _ENTRY_SLIP = True
 # 15 (at 0.99 also thanks to `tangential.slip_multiplier`). Spreading at every
 # iteration (`_SPREAD_WHEN` = 0) sent the 256^2 Cattaneo-Mindlin step at 0.9 mu W
 # from 24 to 364 iterations (a 2-cycle: each step undid the last spread); 1e-6: 334.
+# A sweep of one-step loads (48^2 over 4 a, nu 0 / 0.1 / 0.2 / 0.3 / 0.45, F = 0.3 /
+# 0.6 / 0.85 / 0.95 / 0.995 mu W, "x" and "full"; 64^2 float32; 5-step ramps; oblique
+# ramps; benchmarks/joint_robustness.py): all 68 converge without the fallbacks,
+# 8-24 iterations a step; on a grid of 4 a(nu = 0.3) for every nu, one step of "x",
+# nu 0.1, F = 0.85 mu W took 169 (a release / recapture 2-cycle of 2 cells). With
+# one shear component, without the spread: "x", nu 0, F = 0.3 mu W fell back (315);
+# the spread moving only the cells inside their discs: one fallback in the 25 "x"
+# loads at 64^2 (nu 0.1, F = 0.3 mu W: 316), none with them all moving (<= 100).
 _SPREAD_WHEN = 1e-3
 _SPREAD_NEWTON = 4
 
