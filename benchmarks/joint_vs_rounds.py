@@ -45,7 +45,8 @@ Notes on the design of `jaxcontact/_solver/joint.py` (what was tried):
   cases of a parameter sweep (n = 48..160, mu = 0.1..1, nu = 0..0.45, F/muW = 0..0.95);
 - lagged bound (kept): the inner problem is a convex QP, robust in the same sweep
   (the only failures are the cases the rounds cannot solve either: F = 0.95 mu W and
-  mu = 0.1 with F = 0.5 mu W, where no stick cell survives);
+  mu = 0.1 with F = 0.5 mu W, where no stick cell survives; solved since db55c27,
+  whose all-slip load multiplier and load fix `joint_robustness.py` measures);
 - wired in as the default of `contact_step` with the rounds as fallback; the one
   failure found by tests/test_joint.py (displacement control past gross sliding with
   the total slip law: the stick set cycles) now gives up after 150 iterations without
