@@ -320,20 +320,22 @@ def test_slip_multiplier_recovers_the_rigid_displacement():
 
 @pytest.mark.slow
 def test_contact_step_never_claims_a_wrong_answer():
-    """With bounds far too small for any method (one joint iteration and its forced
-    bound update, one round of one-iteration solves), `contact_step` (joint, then the
-    rounds, then the load root search) reports converged=False with a finite residual
-    above rtol, never a converged flag on an unconverged answer. With one or three
-    iterations per solve and the default 100 rounds the fallbacks (rounds; the root
-    search's warm-started, FFT-preconditioned displacement-controlled solves) now get
-    there (measured with one: 228 iterations in all, pressure within 1.2e-8 of the
-    peak): a converged flag must then come with the right answer."""
+    """`contact_step` (joint, then the rounds, then the load root search) never puts a
+    converged flag on a wrong answer. With an unreachable tolerance (rtol 1e-17, below
+    the float64 round-off of the residual) and the tightest bounds (one joint iteration
+    and its forced bound update, one round of one-iteration solves) it reports
+    converged=False with a finite residual above rtol. With the same bounds at rtol
+    1e-8 it used to fail too; since db55c27 (the all-slip load multiplier of
+    `tangential.slip_multiplier`) the root search gets there (measured: 50 iterations
+    in all, pressure within 2.1e-8 of the peak), and with one or three iterations per
+    solve and the default 100 rounds so do the rounds (228 iterations with one): a
+    converged flag must then come with the right answer."""
     w = jnp.asarray(CASES["CM F_x ramp"][2][-1:])
     t = jnp.asarray(CASES["CM F_x ramp"][3][-1:])
-    run = stepper("step", "full", True, max_steps=1, max_rounds=1)
+    run = stepper("step", "full", True, max_steps=1, max_rounds=1, rtol=1e-17)
     sol = jax.tree_util.tree_map(np.asarray, run(w, t, MU, 1.0))
     assert not sol.converged[0]
-    assert np.isfinite(sol.residual[0]) and sol.residual[0] > RTOL
+    assert np.isfinite(sol.residual[0]) and sol.residual[0] > 1e-17
     assert np.all(np.isfinite(sol.pressure)) and np.all(np.isfinite(sol.shear))
 
     # The reference: the same step at the end of the ramp (its load history does not
@@ -341,8 +343,8 @@ def test_contact_step_never_claims_a_wrong_answer():
     # solved alone with the default iteration bound.
     ref = jax.tree_util.tree_map(np.asarray, stepper("step", "full", True)(w, t, MU, 1.0))
     p_max = ref.pressure.max()
-    for max_steps in (1, 3):
-        run = stepper("step", "full", True, max_steps=max_steps)
+    for max_steps, max_rounds in ((1, 1), (1, 100), (3, 100)):
+        run = stepper("step", "full", True, max_steps=max_steps, max_rounds=max_rounds)
         sol = jax.tree_util.tree_map(np.asarray, run(w, t, MU, 1.0))
         if sol.converged[0]:
             assert np.abs(sol.pressure - ref.pressure).max() <= same(N) * p_max
