@@ -307,6 +307,11 @@ def test_slip_multiplier_recovers_the_rigid_displacement():
                                      jnp.zeros(2)))
     np.testing.assert_allclose(fit[0], w_par[0][contact].mean(), rtol=1e-8)
     np.testing.assert_allclose(fit[1], delta[1], rtol=1e-10)
+    # No contact cell at all: finite (zero), not NaN.
+    none = np.asarray(slip_multiplier(jnp.asarray(w), jnp.asarray(q_hat),
+                                      jnp.zeros((n, n), bool), jnp.asarray([True, True]),
+                                      jnp.zeros(2)))
+    assert np.array_equal(none, np.zeros(2))
 
     sign = np.where(rng.uniform(size=(n, n)) < 0.3, -1.0, 1.0)
     w1 = (delta[0] - (lam + 1e-7) * sign)[None]

@@ -586,7 +586,7 @@ def joint_solve(
             # d q_i / d lam: the identity inside, scale (I - y^ y^T) on the circle.
             w = jnp.where(contact, scale, 0.0)
             jac = jnp.stack([jnp.stack([
-                jnp.sum(w * ((i == j) - jnp.where(onto, yh[i] * yh[j], 0.0)))
+                jnp.sum(w * (float(i == j) - jnp.where(onto, yh[i] * yh[j], 0.0)))
                 for j in range(nd)]) for i in range(nd)])
             both = fc[:, None] & fc[None, :]
             jac = jnp.where(both, jac, eye)
@@ -907,7 +907,7 @@ def joint_solve(
         if _DEBUG:
             jax.debug.print(
                 "   bound updated: {} residual {:.2e} since {} anchor {:.2e}", upd,
-                            ev_new["residual"], since, s["anchor"])
+                ev_new["residual"], since, s["anchor"])
         want = (ev_new["residual"] <= _SIGMA * res_ref) | (
             ev_new["residual"] <= rtol) | exhausted(it, since) | (it <= _EARLY)
         applications = applications + 1.5 * final

@@ -126,8 +126,10 @@ def slip_multiplier(w, q_hat, contact, force_control, target):
     both = force_control[:, None] & force_control[None, :]
     m = jnp.where(both, m, jnp.eye(nd, dtype=dtype))
     det = m[0, 0] * m[1, 1] - m[0, 1] * m[1, 0]  # 2 x 2 in closed form (no LAPACK call)
-    return jnp.stack([m[1, 1] * rhs[0] - m[0, 1] * rhs[1],
-                      m[0, 0] * rhs[1] - m[1, 0] * rhs[0]]) / det
+    fit = jnp.stack([m[1, 1] * rhs[0] - m[0, 1] * rhs[1],
+                     m[0, 0] * rhs[1] - m[1, 0] * rhs[0]]) / jnp.where(det != 0, det, 1)
+    # No contact cell (det = 0): the mean (zero), not a NaN.
+    return jnp.where(det != 0, fit, jnp.where(force_control, mean_w, target))
 
 
 def tangential_lipschitz(blocks):
