@@ -607,7 +607,7 @@ def joint_solve(
         if not _SPREAD_NEWTON:
             return fixed
         err = jnp.abs(area * _sum2(fixed) - tangential_target)
-        err = jnp.max(jnp.where(fc, err, 0.0)) / (area * jnp.sum(bound))
+        err = _safe_div(jnp.max(jnp.where(fc, err, 0.0)), area * jnp.sum(bound))
         bad = (err > _SPREAD_WHEN) | ~jnp.any(stick_of(q, bound))
         if _DEBUG:
             jax.debug.print("      spread {} load error {:.2e}", bad, err)
