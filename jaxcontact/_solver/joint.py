@@ -138,6 +138,7 @@ import numpy as np
 
 from .coupled import StepConfig, StepResult
 from .precondition import block_preconditioner
+from .tangential import dot as _dot
 from .tangential import slip_multiplier
 
 
@@ -227,15 +228,6 @@ _SPREAD_NEWTON = 4
 def _safe_div(a, b):
     ok = b != 0
     return jnp.where(ok, a / jnp.where(ok, b, 1), jnp.zeros_like(a))
-
-
-# Vector fields are (nd, nx, ny). Component sums are written out: XLA:CPU runs a
-# reduction over the leading axis fused with elementwise work several times slower.
-def _dot(a, b):
-    out = a[0] * b[0]
-    for i in range(1, a.shape[0]):
-        out = out + a[i] * b[i]
-    return out
 
 
 def _inv_norm(q):
