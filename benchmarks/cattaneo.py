@@ -10,7 +10,9 @@ Cases (SI units; rigid sphere R = 10 mm, W = 0.15 N, G = 1 MPa, nu = 0.3):
    5.5 a (about 45 cells per contact radius).
 3. The ratio of a frictional solve to a normal solve on the same 256^2 grid, fully
    coupled ("full") and uncoupled ("none"), and the stick radius of each against
-   Cattaneo-Mindlin's (which only the uncoupled solve has).
+   Cattaneo-Mindlin's (which only the uncoupled solve has); also the paper's coupled
+   normal load alone (no tangential input, "full", one step) against the same
+   normal solve.
 4. Spence (coupling "full", nu = 0.3, mu = 0.2): the normal load applied in 90
    increments on 105^2 cells over 2.3 a; the stick radius c/a at the end. Also in
    float32 (its default rtol 1e-5), whose c/a is compared with float64's, and in
@@ -98,6 +100,12 @@ def normal_vs_coupled(n=256, width=4.0, mu=0.3, repeats=3):
                      coupling="full")
     op_full = jc.HalfSpace(grid, "full")
     coupled_s, sol = timed(lambda: jc.solve(scene, operator=op_full), repeats)
+    # The paper's coupled normal load alone (Fig. 14's scene: no tangential input, the
+    # shear only from the coupling), fully coupled, in one step.
+    normal_only = jc.Scene(grid, jc.Sphere(R), jc.Elastic(G, NU), times=jnp.zeros(1),
+                           normal=jc.Force(W), friction=mu, coupling="full")
+    coupled_normal_s, sol_cn = timed(lambda: jc.solve(normal_only, operator=op_full),
+                                     repeats)
     # The same frictional scene without the normal-tangential coupling (Cattaneo-
     # Mindlin: the normal solve, then one tangential solve).
     uncoupled = jc.Scene(grid, jc.Sphere(R), jc.Elastic(G, NU), times=jnp.zeros(1),
@@ -120,6 +128,9 @@ def normal_vs_coupled(n=256, width=4.0, mu=0.3, repeats=3):
                 ratio=coupled_s / normal_s, rounds=int(sol.rounds[0]),
                 iterations=int(sol.iterations[0]), converged=bool(sol.converged[0]),
                 uncoupled_s=uncoupled_s, ratio_uncoupled=uncoupled_s / normal_s,
+                coupled_normal_load_s=coupled_normal_s,
+                ratio_coupled_normal_load=coupled_normal_s / normal_s,
+                iterations_coupled_normal_load=int(sol_cn.iterations[0]),
                 stick_radius_error_cells_full=c_error(sol),
                 stick_radius_error_cells_uncoupled=c_error(sol_none))
 
