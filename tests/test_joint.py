@@ -251,6 +251,33 @@ def test_joint_solves_small_and_absent_stick_zones(ratio):
     assert np.all(np.abs(along + s_mag)[sliding_cells] <= 1e-6 * s_mag.max())
 
 
+def test_joint_flips_slip_cells_whose_slip_has_the_wrong_sign():
+    """One shear component ("x"), nu = 0.45, F = 0.995 mu W in one step at 64^2:
+    slip cells at the contact edge (tiny bound mu p) whose slip has the sign of their
+    shear by more than moving the shear across the disc could undo locally are
+    flipped to the other side of the disc (`joint._FLIP`). Freed instead, the step
+    carried them across, the projection put them on the opposite side, and the next
+    step undid it: a two-cycle until `_STALL` (100 iterations; measured now 9).
+
+    Independent check of the result: Coulomb's conditions pointwise and the load."""
+    n = 64
+    load = jnp.asarray([[0.995 * MU * W, 0.0]])
+    res = jax.tree_util.tree_map(np.asarray, stepper("joint", "x", True, n=n)(
+        jnp.asarray([W]), load, MU, 1.0, 0.45))
+    assert bool(res.converged[0]), float(res.residual[0])
+    assert int(res.iterations[0]) <= 30, int(res.iterations[0])
+    p, q, slip, stick = res.pressure[0], res.shear[0][0], res.slip[0][0], res.stick[0]
+    area = (4 * hertz_radius() / n) ** 2
+    np.testing.assert_allclose(q.sum() * area, 0.995 * MU * W, rtol=1e-8)
+    p_max = p.max()
+    assert np.all(np.abs(q) <= MU * p * (1 + 1e-8) + 1e-12 * p_max)
+    sliding_cells = (p > 0) & ~stick
+    assert np.all(np.abs(np.abs(q) - MU * p)[sliding_cells] <= 1e-8 * MU * p_max)
+    # The slip opposite to q on every slip cell, to the solution tolerance.
+    wrong = np.where(sliding_cells, np.maximum(slip * np.sign(q), 0.0), 0.0)
+    assert wrong.max() <= 1e-6 * np.abs(slip).max(), wrong.max()
+
+
 def test_all_slip_multiplier_is_the_displacement_that_gives_the_load():
     """With no stick cell (F = 0.99 mu W, nu = 0.1, one step) the tangential
     displacement reported under load control is the one that, prescribed

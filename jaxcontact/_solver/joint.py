@@ -57,7 +57,9 @@ to their slip increment (`_ENTRY_SLIP`: contact edges slip).
   load control);
   `q` on stick cells and on released slip cells (wrong-sign slip) as vectors, and the
   rotation of slip cells along their disc, with the disc curvature `lambda / B` in the
-  preconditioner and the step (`tangential.py`);
+  preconditioner and the step (`tangential.py`); with one shear component, a released
+  cell whose wrong-sign slip no move inside its disc could undo flips to the other
+  side instead (`_FLIP`);
 - preconditioner: the full-plane inverse of the operator's block diagonal
   (`precondition.block_preconditioner`: the padded tangential spectra floored by the
   normal one, on the unpadded grid, raised to the continuous half-space symbols where
@@ -146,6 +148,18 @@ from .tangential import slip_multiplier
 _SIGMA = 0.5
 _STICK_TOL = 1e-10  # as tangential.py (float64; at least 64 eps of the dtype)
 _DEBUG = False
+# One shear component: a slip cell whose slip has the sign of its shear (a release,
+# `lambda < 0`) by more than `_FLIP` times what moving its shear across the whole
+# disc would change locally (`c_tt 2 B`, the operator's diagonal) cannot stick: it
+# flips to the other side of its disc instead of being freed. Freed, the step carried
+# such cells (at the contact edge, where `B = mu p` is tiny and the slip largest)
+# across the disc, the projection left them on the opposite side with the residual
+# up ~100x, and the next step undid it (`alpha_3 = -1`): a two-cycle until `_STALL`.
+# Coupled normal load alone, "x", 256^2: 205 -> 19 iterations; CM "x" nu 0.45 at
+# 256^2: 46 -> 15; the "x" one-step sweeps at 48^2 and 64^2 (50 loads): 1054 -> 770,
+# max 169 -> 23; benchmarks/joint_robustness.py 1756 -> 1731. 1 flipped too early
+# (48^2, nu 0, F 0.85 mu W: 24 -> 287); 2, 4 and 8 all mended the cases above.
+_FLIP = 4.0
 _UPD_RESTART = False  # drop the previous step at bound updates
 _ZIGZAG = True  # cells bound to their disc by the last step are not released at once
 # 1: drop the previous step when an active set changes; 2: only when variables are
@@ -706,6 +720,9 @@ def joint_solve(
             release = release & ~s["fresh"]
         if _HOLD_EARLY:
             release = release & ~(s["want"] & (s["it"] <= _EARLY))
+        if nd == 1:  # `_FLIP`
+            flip = release & (-lam_raw > _FLIP * c_tt * 2 * bound)
+            release = release & ~flip
         full = (stick | release) & ~sliding
         if nd == 2:
             rotate = slip_cells & ~release & ~sliding
@@ -835,6 +852,8 @@ def joint_solve(
         # in the step may point inside it); the others are projected.
         keep_on = ((slip_cells & ~release & ~sliding) if _FOLLOW
                    else jnp.zeros_like(contact))
+        if nd == 1:  # flipped cells: the other side of their disc (`_FLIP`)
+            q_step = jnp.where(flip[None], -q, q_step)
         q_new = settle_shear(q_step, bound, keep_on, sliding)
         # The bound update decided at the end of the last iteration: the bound
         # becomes mu p of this iterate and its slip cells follow their discs, inside
