@@ -142,6 +142,7 @@ from .coupled import StepConfig, StepResult
 from .precondition import block_preconditioner
 from .tangential import dot as _dot
 from .tangential import slip_multiplier
+from .tangential import solve_small as _solve_small
 
 
 # Bound update when the inner residual < sigma x the residual at the last update.
@@ -270,15 +271,6 @@ def _onto_discs(q, bound, follow):
     inv = jnp.where(pos, jax.lax.rsqrt(jnp.where(pos, m2, 1.0)), 0.0)
     onto = follow | (m2 > bound * bound)
     return q * jnp.where(onto, bound * inv, 1.0)[None]
-
-
-def _solve_small(m, rhs):
-    """A 1x1 or 2x2 linear system in closed form (no LAPACK call inside the loop)."""
-    if m.shape[0] == 1:
-        return rhs / m[0, 0]
-    det = m[0, 0] * m[1, 1] - m[0, 1] * m[1, 0]
-    return jnp.stack([m[1, 1] * rhs[0] - m[0, 1] * rhs[1],
-                      m[0, 0] * rhs[1] - m[1, 0] * rhs[0]]) / det
 
 
 def _solve3(h, g):

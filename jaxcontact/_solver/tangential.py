@@ -77,6 +77,15 @@ def dot(a, b):
     return out
 
 
+def solve_small(m, rhs):
+    """A 1x1 or 2x2 linear system in closed form (no LAPACK call inside a loop)."""
+    if m.shape[0] == 1:
+        return rhs / m[0, 0]
+    det = m[0, 0] * m[1, 1] - m[0, 1] * m[1, 0]
+    return jnp.stack([m[1, 1] * rhs[0] - m[0, 1] * rhs[1],
+                      m[0, 0] * rhs[1] - m[1, 0] * rhs[0]]) / det
+
+
 def _norm(q):
     """Pointwise magnitude of an `(nd, nx, ny)` vector field."""
     return jnp.sqrt(dot(q, q))
@@ -135,10 +144,10 @@ def slip_multiplier(w, q_hat, contact, force_control, target):
     fixed = jnp.where(force_control, 0.0, target)
     rhs = jnp.where(force_control, rhs - m @ fixed, target)
     both = force_control[:, None] & force_control[None, :]
-    m = jnp.where(both, m, jnp.eye(nd, dtype=dtype))
-    det = m[0, 0] * m[1, 1] - m[0, 1] * m[1, 0]  # 2 x 2 in closed form (no LAPACK call)
-    fit = jnp.stack([m[1, 1] * rhs[0] - m[0, 1] * rhs[1],
-                     m[0, 0] * rhs[1] - m[1, 0] * rhs[0]]) / jnp.where(det != 0, det, 1)
+    eye = jnp.eye(nd, dtype=dtype)
+    m = jnp.where(both, m, eye)
+    det = m[0, 0] * m[1, 1] - m[0, 1] * m[1, 0]
+    fit = solve_small(jnp.where(det != 0, m, eye), rhs)
     # No contact cell (det = 0): the mean (zero), not a NaN.
     return jnp.where(det != 0, fit, jnp.where(force_control, mean_w, target))
 
