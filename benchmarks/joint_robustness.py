@@ -10,7 +10,9 @@ rounds, the load root search), i.e. the joint iteration gave up. Loads:
   nu 0 / 0.1 / 0.2 / 0.3 / 0.45, coupling "x" and "full" (n = 48; `--n` to change);
 - float32, one step, n = 64, nu 0 / 0.1 / 0.3, ratio 0.6 / 0.95;
 - F_x ramped in 5 steps (mu = 0.5), and an oblique load (F_x, F_y at 0.7 rad) ramped
-  in 3 steps, nu 0 / 0.1 / 0.3, ratio 0.6 / 0.95.
+  in 3 steps, nu 0 / 0.1 / 0.3, ratio 0.6 / 0.95;
+- the oblique load in one step near gross sliding, n = 64 on a grid of 4 a(nu = 0.3),
+  nu 0 / 0.1 / 0.3, ratio 0.85 / 0.95 / 0.995.
 
 Strong coupling (small nu) with a load near mu W leaves a small stick zone or none at
 all (the shear directions fan out): the cases that used to stall (joint.py,
@@ -18,7 +20,7 @@ all (the shear directions fan out): the cases that used to stall (joint.py,
 
 Usage::
 
-    python benchmarks/joint_robustness.py            # 70 cases, ~7 min on 2 cores
+    python benchmarks/joint_robustness.py            # 77 cases, ~2 min on 2 cores
     python benchmarks/joint_robustness.py --quick    # one-step "full" cases only
 
 Results go to `benchmarks/results/joint_robustness.json`: per case its parameters,
@@ -48,9 +50,11 @@ R, W, G = 10e-3, 0.15, 1e6
 MAX_STEPS = 300
 
 
-def run_case(n, nu, mu, ratio, coupling, steps, dtype, angle=None):
-    """One scene; `angle` (rad) adds a y load (F_x, F_y) = F (cos, sin)."""
-    a = float(jc.Hertz(R, W, G, nu).contact_radius)
+def run_case(n, nu, mu, ratio, coupling, steps, dtype, angle=None, grid_nu=None):
+    """One scene; `angle` (rad) adds a y load (F_x, F_y) = F (cos, sin). The grid
+    spans 4 Hertz radii of the material (`grid_nu`: of a material with that Poisson
+    ratio instead)."""
+    a = float(jc.Hertz(R, W, G, nu if grid_nu is None else grid_nu).contact_radius)
     grid = jc.Grid((n, n), jnp.asarray(4.0 * a, dtype))
     t = jnp.arange(steps, dtype=dtype)
     force = ratio * mu * W * (t + 1) / steps
@@ -66,7 +70,8 @@ def run_case(n, nu, mu, ratio, coupling, steps, dtype, angle=None):
     iterations = np.asarray(sol.iterations).tolist()
     return dict(
         n=n, nu=nu, mu=mu, ratio=ratio, coupling=coupling, steps=steps,
-        dtype=jnp.dtype(dtype).name, angle=angle, iterations=iterations,
+        dtype=jnp.dtype(dtype).name, angle=angle, grid_nu=grid_nu,
+        iterations=iterations,
         converged=bool(np.all(sol.converged)),
         fallback=max(iterations) > MAX_STEPS,
         stick_ratio=float(sol.stick_ratio[-1]),
@@ -88,6 +93,12 @@ def cases(n, quick):
             out.append((n, nu, 0.5, ratio, "full", 5, jnp.float64))
             out.append((64, nu, 0.3, ratio, "full", 1, jnp.float32))
             out.append((n, nu, 0.3, ratio, "full", 3, jnp.float64, 0.7))
+    # Oblique loads near gross sliding in one step on a grid of 4 a(nu = 0.3) (no
+    # stick cell left at 0.95 and 0.995): where joint.py's two-component wrong-slip
+    # flip (`_FLIP`) was found (nu 0, 0.95 mu W: 1039 iterations without it).
+    for nu in (0.0, 0.1, 0.3):
+        for ratio in (0.85, 0.95, 0.995):
+            out.append((64, nu, 0.3, ratio, "full", 1, jnp.float64, 0.7, 0.3))
     return out
 
 

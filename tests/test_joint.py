@@ -278,6 +278,37 @@ def test_joint_flips_slip_cells_whose_slip_has_the_wrong_sign():
     assert wrong.max() <= 1e-6 * np.abs(slip).max(), wrong.max()
 
 
+def test_joint_flips_wrong_slip_cells_with_two_shear_components():
+    """Two shear components ("full"), nu = 0, F = 0.95 mu W at 0.7 rad in one step at
+    64^2: no cell sticks, and slip cells whose slip points along their shear by more
+    than a move across their disc could undo are put on their disc opposite to their
+    slip (`joint._FLIP`). Freed instead (before), two such cells were released every
+    other iteration and the next step undid it: the joint loop stalled (1039
+    iterations through the fallbacks of `contact_step`; measured now 21).
+
+    Independent check of the result: Coulomb's conditions pointwise (the slip opposite
+    to the shear on slip cells, as vectors) and the load in both directions."""
+    n, ratio, angle = 64, 0.95, 0.7
+    force = ratio * MU * W * np.array([np.cos(angle), np.sin(angle)])
+    res = jax.tree_util.tree_map(np.asarray, stepper("joint", "full", True, n=n)(
+        jnp.asarray([W]), jnp.asarray([force]), MU, 1.0, 0.0))
+    assert bool(res.converged[0]), float(res.residual[0])
+    assert int(res.iterations[0]) <= 40, int(res.iterations[0])
+    p, q, slip, stick = res.pressure[0], res.shear[0], res.slip[0], res.stick[0]
+    area = (4 * hertz_radius() / n) ** 2
+    np.testing.assert_allclose(q.sum(axis=(1, 2)) * area, force, rtol=1e-8)
+    magnitude = np.sqrt((q * q).sum(axis=0))
+    p_max = p.max()
+    assert np.all(magnitude <= MU * p * (1 + 1e-8) + 1e-12 * p_max)
+    sliding_cells = (p > 0) & ~stick
+    assert np.all(np.abs(magnitude - MU * p)[sliding_cells] <= 1e-8 * MU * p_max)
+    # The slip along the shear's direction (it must be opposite) on no slip cell, to
+    # the solution tolerance.
+    along = (slip * q).sum(axis=0) / np.where(magnitude > 0, magnitude, 1.0)
+    wrong = np.where(sliding_cells, np.maximum(along, 0.0), 0.0)
+    assert wrong.max() <= 1e-6 * np.abs(slip).max(), wrong.max()
+
+
 def test_all_slip_multiplier_is_the_displacement_that_gives_the_load():
     """With no stick cell (F = 0.99 mu W, nu = 0.1, one step) the tangential
     displacement reported under load control is the one that, prescribed

@@ -57,9 +57,9 @@ to their slip increment (`_ENTRY_SLIP`: contact edges slip).
   load control);
   `q` on stick cells and on released slip cells (wrong-sign slip) as vectors, and the
   rotation of slip cells along their disc, with the disc curvature `lambda / B` in the
-  preconditioner and the step (`tangential.py`); with one shear component, a released
-  cell whose wrong-sign slip no move inside its disc could undo flips to the other
-  side instead (`_FLIP`);
+  preconditioner and the step (`tangential.py`); a released cell whose wrong-sign
+  slip no move inside its disc could undo jumps onto its disc opposite to its slip
+  instead (with one shear component: to the other side; `_FLIP`);
 - preconditioner: the full-plane inverse of the operator's block diagonal
   (`precondition.block_preconditioner`: the padded tangential spectra floored by the
   normal one, on the unpadded grid, raised to the continuous half-space symbols where
@@ -149,17 +149,24 @@ from .tangential import solve_small as _solve_small
 _SIGMA = 0.5
 _STICK_TOL = 1e-10  # as tangential.py (float64; at least 64 eps of the dtype)
 _DEBUG = False
-# One shear component: a slip cell whose slip has the sign of its shear (a release,
-# `lambda < 0`) by more than `_FLIP` times what moving its shear across the whole
-# disc would change locally (`c_tt 2 B`, the operator's diagonal) cannot stick: it
-# flips to the other side of its disc instead of being freed. Freed, the step carried
-# such cells (at the contact edge, where `B = mu p` is tiny and the slip largest)
-# across the disc, the projection left them on the opposite side with the residual
-# up ~100x, and the next step undid it (`alpha_3 = -1`): a two-cycle until `_STALL`.
-# Coupled normal load alone, "x", 256^2: 205 -> 19 iterations; CM "x" nu 0.45 at
-# 256^2: 46 -> 15; the "x" one-step sweeps at 48^2 and 64^2 (50 loads): 1054 -> 770,
-# max 169 -> 23; benchmarks/joint_robustness.py 1756 -> 1731. 1 flipped too early
-# (48^2, nu 0, F 0.85 mu W: 24 -> 287); 2, 4 and 8 all mended the cases above.
+# A slip cell whose slip has the direction of its shear (a release, `lambda < 0`) by
+# more than `_FLIP` times what moving its shear across the whole disc would change
+# locally (`c_tt 2 B`, the operator's diagonal) cannot stick: it flips to the other
+# side of its disc (two shear components: onto its disc opposite to its slip) instead
+# of being freed. Freed, the step carried such cells (at the contact edge, where
+# `B = mu p` is tiny and the slip largest) across the disc, the projection left them
+# on the opposite side with the residual up ~100x, and the next step undid it
+# (`alpha_3 = -1`): a two-cycle until `_STALL`. One component ("x"): the coupled
+# normal load alone at 256^2: 205 -> 19 iterations; CM nu 0.45 at 256^2: 46 -> 15;
+# one-step sweeps at 48^2 and 64^2 (50 loads): 1054 -> 770, max 169 -> 23;
+# benchmarks/joint_robustness.py 1756 -> 1731. 1 flipped too early (48^2, nu 0,
+# F 0.85 mu W: 24 -> 287); 2, 4 and 8 all mended the cases above. Two components
+# ("full"; the same cycle, with 2 cells released every other iteration and no stick
+# cell left): nu 0, F = 0.95 mu W at 0.7 rad in one step, 64^2 / 128^2 over 4 a:
+# 1039 / 1194 iterations (through the fallbacks) -> 21 / 21 (2 and 8 the same); a
+# one-step "full" sweep (nu 0-0.45 x F 0.3-0.995 mu W, 48^2, 64^2 and 64^2 oblique;
+# 75 loads) 2387 -> 1342 iterations, max 34 -> 23, none worse; joint_robustness
+# 1731 -> 1730; Spence 90 x 105^2 1006 unchanged.
 _FLIP = 4.0
 _UPD_RESTART = False  # drop the previous step at bound updates
 _ZIGZAG = True  # cells bound to their disc by the last step are not released at once
@@ -712,12 +719,12 @@ def joint_solve(
             release = release & ~s["fresh"]
         if _HOLD_EARLY:
             release = release & ~(s["want"] & (s["it"] <= _EARLY))
-        if nd == 1:  # `_FLIP`
-            flip = release & (-lam_raw > _FLIP * c_tt * 2 * bound)
-            release = release & ~flip
+        # `_FLIP`: cells that cannot stick jump across their disc (no step variable)
+        flip = release & (-lam_raw > _FLIP * c_tt * 2 * bound)
+        release = release & ~flip
         full = (stick | release) & ~sliding
         if nd == 2:
-            rotate = slip_cells & ~release & ~sliding
+            rotate = slip_cells & ~release & ~flip & ~sliding
             tt = jnp.where(rotate[None], jnp.stack([-q_hat[1], q_hat[0]]), 0)
             # Disc curvature lambda / B of the rotation of a slip cell.
             curv_disc = jnp.where(
@@ -844,8 +851,10 @@ def joint_solve(
         # in the step may point inside it); the others are projected.
         keep_on = ((slip_cells & ~release & ~sliding) if _FOLLOW
                    else jnp.zeros_like(contact))
-        if nd == 1:  # flipped cells: the other side of their disc (`_FLIP`)
-            q_step = jnp.where(flip[None], -q, q_step)
+        # Flipped cells (`_FLIP`): on their disc, opposite to their slip (with one
+        # component, the other side).
+        q_flip = -q if nd == 1 else -(bound * _inv_norm(ds))[None] * ds
+        q_step = jnp.where(flip[None], q_flip, q_step)
         q_new = settle_shear(q_step, bound, keep_on, sliding)
         # The bound update decided at the end of the last iteration: the bound
         # becomes mu p of this iterate and its slip cells follow their discs, inside
