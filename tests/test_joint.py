@@ -278,22 +278,16 @@ def test_joint_flips_slip_cells_whose_slip_has_the_wrong_sign():
     assert wrong.max() <= 1e-6 * np.abs(slip).max(), wrong.max()
 
 
-def test_joint_flips_wrong_slip_cells_with_two_shear_components():
-    """Two shear components ("full"), nu = 0, F = 0.95 mu W at 0.7 rad in one step at
-    64^2: no cell sticks, and slip cells whose slip points along their shear by more
-    than a move across their disc could undo are put on their disc opposite to their
-    slip (`joint._FLIP`). Freed instead (before), two such cells were released every
-    other iteration and the next step undid it: the joint loop stalled (1039
-    iterations through the fallbacks of `contact_step`; measured now 21).
-
-    Independent check of the result: Coulomb's conditions pointwise (the slip opposite
-    to the shear on slip cells, as vectors) and the load in both directions."""
-    n, ratio, angle = 64, 0.95, 0.7
+def _check_oblique_one_step(nu, ratio, angle, n=64, max_iterations=40):
+    """One step of "full" coupling under the load F = ratio mu W at `angle` [rad]:
+    converged within `max_iterations`, the load in both directions, Coulomb's
+    conditions as vectors (|q| <= mu p; |q| = mu p on slip cells with the slip
+    opposite to q, to the solution tolerance). Returns the iterations."""
     force = ratio * MU * W * np.array([np.cos(angle), np.sin(angle)])
     res = jax.tree_util.tree_map(np.asarray, stepper("joint", "full", True, n=n)(
-        jnp.asarray([W]), jnp.asarray([force]), MU, 1.0, 0.0))
+        jnp.asarray([W]), jnp.asarray([force]), MU, 1.0, nu))
     assert bool(res.converged[0]), float(res.residual[0])
-    assert int(res.iterations[0]) <= 40, int(res.iterations[0])
+    assert int(res.iterations[0]) <= max_iterations, int(res.iterations[0])
     p, q, slip, stick = res.pressure[0], res.shear[0], res.slip[0], res.stick[0]
     area = (4 * hertz_radius() / n) ** 2
     np.testing.assert_allclose(q.sum(axis=(1, 2)) * area, force, rtol=1e-8)
@@ -302,11 +296,24 @@ def test_joint_flips_wrong_slip_cells_with_two_shear_components():
     assert np.all(magnitude <= MU * p * (1 + 1e-8) + 1e-12 * p_max)
     sliding_cells = (p > 0) & ~stick
     assert np.all(np.abs(magnitude - MU * p)[sliding_cells] <= 1e-8 * MU * p_max)
-    # The slip along the shear's direction (it must be opposite) on no slip cell, to
-    # the solution tolerance.
-    along = (slip * q).sum(axis=0) / np.where(magnitude > 0, magnitude, 1.0)
-    wrong = np.where(sliding_cells, np.maximum(along, 0.0), 0.0)
-    assert wrong.max() <= 1e-6 * np.abs(slip).max(), wrong.max()
+    # slip + |slip| q / |q| = 0 on slip cells (opposite directions), relative to the
+    # largest slip.
+    unit = q / np.where(magnitude > 0, magnitude, 1.0)
+    slip_size = np.sqrt((slip * slip).sum(axis=0))
+    misfit = np.sqrt(((slip + slip_size[None] * unit) ** 2).sum(axis=0))
+    assert np.where(sliding_cells, misfit, 0.0).max() <= 1e-6 * slip_size.max()
+    return int(res.iterations[0])
+
+
+def test_joint_flips_wrong_slip_cells_with_two_shear_components():
+    """Two shear components ("full"), nu = 0, F = 0.95 mu W at 0.7 rad in one step at
+    64^2: no cell sticks, and slip cells whose slip points along their shear by more
+    than a move across their disc could undo are put on their disc opposite to their
+    slip (`joint._FLIP`). Freed instead (before), two such cells were released every
+    other iteration and the next step undid it: the joint loop stalled (1039
+    iterations through the fallbacks of `contact_step`; now 15, 21 with the flip
+    alone)."""
+    _check_oblique_one_step(nu=0.0, ratio=0.95, angle=0.7)
 
 
 def test_load_spread_keeps_the_direction_of_cells_with_a_tiny_bound():
@@ -315,27 +322,8 @@ def test_load_spread_keeps_the_direction_of_cells_with_a_tiny_bound():
     cell that has just entered the contact (bound ~1e-6 of the largest) used to be
     turned by the whole common shift, whatever its slip, and held the residual at
     ~1e-2 for ~150 iterations (164 in all); the shift of a slip cell now scales with
-    its bound (measured 15 iterations).
-
-    Independent check: Coulomb's conditions as vectors and the load."""
-    n, ratio, angle, nu = 64, 0.95, 1.2, 0.1
-    force = ratio * MU * W * np.array([np.cos(angle), np.sin(angle)])
-    res = jax.tree_util.tree_map(np.asarray, stepper("joint", "full", True, n=n)(
-        jnp.asarray([W]), jnp.asarray([force]), MU, 1.0, nu))
-    assert bool(res.converged[0]), float(res.residual[0])
-    assert int(res.iterations[0]) <= 40, int(res.iterations[0])
-    p, q, slip, stick = res.pressure[0], res.shear[0], res.slip[0], res.stick[0]
-    area = (4 * hertz_radius() / n) ** 2
-    np.testing.assert_allclose(q.sum(axis=(1, 2)) * area, force, rtol=1e-8)
-    magnitude = np.sqrt((q * q).sum(axis=0))
-    sliding_cells = (p > 0) & ~stick
-    assert np.all(np.abs(magnitude - MU * p)[sliding_cells] <= 1e-8 * MU * p.max())
-    # The slip opposite to the shear on every slip cell (the tangential part of the
-    # slip relative to its magnitude), to the solution tolerance.
-    unit = q / np.where(magnitude > 0, magnitude, 1.0)
-    slip_size = np.sqrt((slip * slip).sum(axis=0))
-    misfit = np.sqrt(((slip + slip_size[None] * unit) ** 2).sum(axis=0))
-    assert np.where(sliding_cells, misfit, 0.0).max() <= 1e-6 * slip_size.max()
+    its bound (measured 15 iterations)."""
+    _check_oblique_one_step(nu=0.1, ratio=0.95, angle=1.2)
 
 
 def test_all_slip_multiplier_is_the_displacement_that_gives_the_load():
