@@ -748,6 +748,73 @@ def test_constant_tangential_load_creeps():
     )
 
 
+@pytest.mark.parametrize(
+    "material, duration",
+    # Zener mu_inf / mu_0 = 10 (relaxation time tau / 10) and a Maxwell fluid, both as
+    # one-arm Prony series: one compiled program for the two.
+    [
+        (jc.Prony(T2_MU_INF / 10, [0.9 * T2_MU_INF], [T2_TAU / 10], T2_NU), 4 * T2_TAU),
+        (jc.Prony(0.0, [T2_MU_INF], [T2_TAU], T2_NU), 5 * T2_TAU),
+    ],
+    ids=["zener-10", "maxwell"],
+)
+def test_tangential_load_control_on_fluid_like_materials(material, duration):
+    """Paper 4.2.2: "a load-controlled algorithm in the tangential direction could fail
+    to converge when the contact of a viscoelastic material with a relatively high ratio
+    is considered" (fluid-like, after a long time). Ours controls the load directly; the
+    LC case (W and F_x = 0.5 mu W from t = 0, full coupling, the paper's total slip law)
+    on Zener mu_inf / mu_0 = 10 over 4 tau (J x9.8) and on a Maxwell fluid over 5 tau
+    (J x6) converges at every step in the joint iteration alone (max_steps = 60, no
+    fallback; measured at most 16 iterations a step at 32^2, 41 steps).
+
+    Exact reference (correspondence, as Lee & Radok's for the normal problem): let
+    `(p_e, q_e)(s)` be the ELASTIC solution (unit modulus) for the loads `J(s) (W, F)`
+    and `(p, q)(t) = int G(t - s) d(p_e, q_e)(s)`. Then `u(t) = K (p_e, q_e)(t)`
+    (`G * dJ = 1`): the gap and the total slip are the elastic ones at `J(t) (W, F)`;
+    a cell outside the contact, or slipping (`q_e = mu p_e`), at `t` was so at every
+    `s <= t` since the zones grow, so `p = 0` there, resp. `q = mu p`; the loads are
+    `(W, F)`. Under the path-independent total law the elastic problem is self-similar
+    under proportional loads (`a ~ W^(1/3)`, rigid displacements `~ W^(2/3)`), so
+    `delta_z(t) / delta_z(0) = delta_x(t) / delta_x(0) = (J(t) / J(0))^(2/3)` and the
+    stick ratio is constant. Exact without coupling (measured, coupling "none": 4-6e-3
+    at 32^2, 4-6e-4 at 64^2). With it, the shear direction of a slipping cell depends on
+    r / a and turns as the zones grow, so `q = int G dq_e` falls slightly inside the
+    disc: `delta_x` departs by 3e-3 at 32^2 and at 64^2 (physical), `delta_z` by 1.4e-3
+    and 1.5e-4. Checked to 1 % (21 steps instead of 41: 2e-2 for the Zener case, whose
+    steps would be two relaxation times), and c / a = sqrt(stick ratio) within 0.08
+    (measured 0.03-0.05: cell counts). Also F_x = 0.5 mu W to 1e-6 at every step and
+    |q| <= mu p."""
+    a0 = float(t2_hertz().contact_radius)
+    grid = jc.Grid((32, 32), 5.5 * a0)
+    times = jnp.linspace(0.0, duration, 41)
+    fx = 0.5 * CONST_MU * T2_W
+    scene = jc.Scene(
+        grid,
+        jc.Sphere(T2_R),
+        material,
+        times,
+        normal=jc.Force(T2_W),
+        x=jc.Force(fx),
+        friction=CONST_MU,
+        coupling="full",
+        slip="total",
+    )
+    sol = as_np(jc.solve(scene, max_steps=60, max_rounds=3))
+    check_converged(sol)
+    assert sol.iterations.max() <= 60, sol.iterations
+    assert not sol.edge_contact.any() and not sol.sliding.any()
+    np.testing.assert_allclose(sol.tangential_force[:, 0], fx, rtol=1e-6)
+    np.testing.assert_allclose(sol.normal_force, T2_W, rtol=1e-8)
+    q_mag = np.hypot(sol.shear[:, 0], sol.shear[:, 1])
+    assert np.all(q_mag <= CONST_MU * sol.pressure * (1 + 1e-6) + 1e-12 * T2_W)
+    growth = np.asarray(material.creep(times) / material.creep(0.0)) ** (2 / 3)
+    dx = sol.tangential_displacement[:, 0]
+    np.testing.assert_allclose(dx / dx[0], growth, rtol=1e-2)
+    np.testing.assert_allclose(sol.approach / sol.approach[0], growth, rtol=1e-2)
+    c_over_a = np.sqrt(sol.stick_ratio)
+    assert np.ptp(c_over_a) <= 0.08, c_over_a
+
+
 # The default run keeps DC through notebooks/paper_reproduction.py (ci size).
 @pytest.mark.slow  # DC: paper_reproduction notebook asserts F_x relaxes
 def test_constant_tangential_displacement_relaxes():
@@ -761,9 +828,11 @@ def test_constant_tangential_displacement_relaxes():
     unloading slips nothing: the new and relaxing cells stick). The paper (Fig. 16a,
     total-slip law) reports the DC stick ratio LOWER than LC after some time, with an
     insignificant difference: we do not reproduce that ordering (with the paper's total
-    law our DC stick ratio is 0.25-0.28 and LC ~0.25, still not lower; but the LC case
-    with the total law stops converging after about 12 steps: its coupled rounds run
-    out, as the paper itself reports for load control in x)."""
+    law our DC stick ratio is 0.25-0.28 and LC 0.24-0.26, still not lower; with that
+    law the LC stick ratio is constant in time, see
+    `test_tangential_load_control_on_fluid_like_materials`; it converges at every step,
+    11-16 iterations: the coupled rounds of an early version ran out after about 12
+    steps, as the paper reports for load control in x)."""
     grid, times, scene, sol = constant_input_case("DC")
     _, _, _, lc = constant_input_case("LC")
     check_converged(sol)
