@@ -12,7 +12,16 @@ rounds, the load root search), i.e. the joint iteration gave up. Loads:
 - F_x ramped in 5 steps (mu = 0.5), and an oblique load (F_x, F_y at 0.7 rad) ramped
   in 3 steps, nu 0 / 0.1 / 0.3, ratio 0.6 / 0.95;
 - the oblique load in one step near gross sliding, n = 64 on a grid of 4 a(nu = 0.3),
-  nu 0 / 0.1 / 0.3, ratio 0.85 / 0.95 / 0.995.
+  nu 0 / 0.1 / 0.3, ratio 0.85 / 0.95 / 0.995;
+- viscoelastic (`--viscoelastic`, 63 more scenes; `--viscoelastic-only`): Zener
+  mu_inf / mu_0 = 4 and 10 and a Maxwell fluid (long-time or spring modulus G,
+  retardation / relaxation time tau = 1 s), nu 0.1 / 0.3 / 0.45, 20 steps over 3 tau,
+  n = 40 on a grid of 4 a(G / 2.5) (room for the Maxwell creep), full coupling, under
+  constant W: F_x ramped over tau to 0.6 / 0.95 mu W and held (creep), an oblique
+  0.9 mu W, delta_x ramped to twice Cattaneo-Mindlin's sliding displacement (gross
+  sliding), F_x 0 -> 0.8 -> -0.8 mu W (reversal), a (F_x, F_y)
+  of 0.7 mu W turning by 180 degrees; and W falling to 0.2 W under a constant
+  F_x = 0.25 mu W(0) (gross sliding in the last two steps).
 
 Strong coupling (small nu) with a load near mu W leaves a small stick zone or none at
 all (the shear directions fan out): the cases that used to stall (joint.py,
@@ -22,6 +31,7 @@ Usage::
 
     python benchmarks/joint_robustness.py            # 77 cases, ~2 min on 2 cores
     python benchmarks/joint_robustness.py --quick    # one-step "full" cases only
+    python benchmarks/joint_robustness.py --viscoelastic   # + 63 viscoelastic, ~2 min
 
 Results go to `benchmarks/results/joint_robustness.json`: per case its parameters,
 the iterations per step, `converged`, `fallback` (a step above `max_steps`), the
@@ -102,29 +112,115 @@ def cases(n, quick):
     return out
 
 
+VISCO_PROGRAMS = ("creep 0.6", "creep 0.95", "oblique 0.9", "displacement",
+                  "reversal", "unloading", "turning")
+
+
+def visco_material(name, nu, tau=1.0):
+    """`zener4` / `zener10` (long-time modulus G) or `maxwell` (spring G)."""
+    if name == "maxwell":
+        return jc.Maxwell(G, G * tau, nu)
+    ratio = {"zener4": 4.0, "zener10": 10.0}[name]
+    return jc.Zener(ratio * G, G, tau, nu)
+
+
+def visco_loads(program, t, nu, mu, tau=1.0):
+    """The normal and tangential inputs of one viscoelastic program at times `t`."""
+    ramp = jnp.minimum(t / tau, 1.0)
+    full_w = jc.Force(jnp.full_like(t, W))
+    # Cattaneo-Mindlin's sliding displacement with the soft modulus G.
+    a_soft = float(jc.Hertz(R, W, G, nu).contact_radius)
+    slide = 3 * mu * W * (2 - nu) / (8 * G * a_soft)
+    turn = np.pi * t / t[-1]
+    if program.startswith("creep"):
+        return dict(normal=full_w, x=jc.Force(float(program[6:]) * mu * W * ramp))
+    if program == "oblique 0.9":
+        f = 0.9 * mu * W * ramp
+        return dict(normal=full_w, x=jc.Force(f * np.cos(0.7)),
+                    y=jc.Force(f * np.sin(0.7)))
+    if program == "displacement":
+        return dict(normal=full_w, x=jc.Displacement(2 * slide * t / t[-1]))
+    if program == "reversal":
+        half = t[-1] / 2
+        tri = jnp.where(t < half, t / half, 1 - 2 * (t - half) / half)
+        return dict(normal=full_w, x=jc.Force(0.8 * mu * W * tri))
+    if program == "unloading":
+        return dict(normal=jc.Force(W * (1 - 0.8 * t / t[-1])),
+                    x=jc.Force(jnp.full_like(t, 0.25 * mu * W)))
+    if program == "turning":
+        f = 0.7 * mu * W * ramp
+        return dict(normal=full_w, x=jc.Force(f * jnp.cos(turn)),
+                    y=jc.Force(f * jnp.sin(turn)))
+    raise ValueError(f"unknown program {program!r}")
+
+
+def run_viscoelastic_case(material, nu, program, n=40, steps=20, mu=0.3):
+    """One viscoelastic scene (see the module docstring)."""
+    a_soft = float(jc.Hertz(R, W, G / 2.5, nu).contact_radius)
+    grid = jc.Grid((n, n), 4.0 * a_soft)
+    t = jnp.linspace(0.0, 3.0, steps)
+    scene = jc.Scene(grid, jc.Sphere(R), visco_material(material, nu), times=t,
+                     friction=mu, coupling="full", **visco_loads(program, t, nu, mu))
+    start = time.perf_counter()
+    sol = jc.solve(scene, max_steps=MAX_STEPS, max_rounds=3)
+    iterations = np.asarray(sol.iterations).tolist()
+    return dict(
+        material=material, nu=nu, program=program, n=n, steps=steps, mu=mu,
+        coupling="full", dtype="float64", iterations=iterations,
+        converged=bool(np.all(sol.converged)),
+        fallback=max(iterations) > MAX_STEPS,
+        sliding_steps=int(np.sum(sol.sliding)),
+        finite=bool(np.all(np.isfinite(np.asarray(sol.pressure)))),
+        stick_ratio=float(sol.stick_ratio[-1]),
+        seconds=time.perf_counter() - start,
+    )
+
+
+def summarise(rows):
+    bad = [r for r in rows if r["fallback"] or not r["converged"]]
+    steps = [i for r in rows for i in r["iterations"]]
+    return dict(cases=len(rows), fallbacks=len(bad), max_iterations=max(steps),
+                median_iterations=float(np.median(steps)), total_iterations=sum(steps))
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=48)
     parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--viscoelastic", action="store_true",
+                        help="also the 63 viscoelastic scenes")
+    parser.add_argument("--viscoelastic-only", action="store_true")
     parser.add_argument(
         "--out", default=str(ROOT / "benchmarks/results/joint_robustness.json"))
     args = parser.parse_args()
     rows = []
-    for case in cases(args.n, args.quick):
+    for case in ([] if args.viscoelastic_only else cases(args.n, args.quick)):
         row = run_case(*case)
         rows.append(row)
         mark = "  <- FALLBACK" if row["fallback"] or not row["converged"] else ""
         print(f"{row['coupling']:>4} nu {row['nu']:.2f} F/muW {row['ratio']:.3f} "
               f"steps {row['steps']} {row['dtype']} angle {row['angle']}: "
               f"{row['iterations']} stick {row['stick_ratio']:.3f}{mark}", flush=True)
-    bad = [r for r in rows if r["fallback"] or not r["converged"]]
-    steps = [i for r in rows for i in r["iterations"]]
-    summary = dict(cases=len(rows), fallbacks=len(bad), max_iterations=max(steps),
-                   median_iterations=float(np.median(steps)))
-    print(summary)
+    visco = []
+    if args.viscoelastic or args.viscoelastic_only:
+        for nu in (0.1, 0.3, 0.45):
+            for material in ("zener4", "zener10", "maxwell"):
+                for program in VISCO_PROGRAMS:
+                    row = run_viscoelastic_case(material, nu, program)
+                    visco.append(row)
+                    mark = ("  <- FALLBACK" if row["fallback"] or not row["converged"]
+                            or not row["finite"] else "")
+                    print(f"{material:>8} nu {nu:.2f} {program:>12}: "
+                          f"{row['iterations']} sliding {row['sliding_steps']}{mark}",
+                          flush=True)
+    summary = summarise(rows) if rows else None
+    visco_summary = summarise(visco) if visco else None
+    print(summary, visco_summary)
     machine = dict(platform=platform.platform(), processor=platform.processor(),
                    python=platform.python_version(), jax=jax.__version__)
     out = dict(machine=machine, max_steps=MAX_STEPS, summary=summary, cases=rows)
+    if visco:
+        out.update(viscoelastic_summary=visco_summary, viscoelastic_cases=visco)
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(out, indent=1))
 
