@@ -131,8 +131,10 @@ def solve_normal(
     contact radius (or `sqrt(R delta)`) does not fit inside the grid less its outer ring
     of cells; `NormalSolution.edge_contact` flags the solved contact exactly.
 
-    **Returns:** a `jc.NormalSolution`. The solve is jitted: a second call with new
-    values of the same shapes reuses the compiled program.
+    **Returns:** a `jc.NormalSolution` in the grid's dtype (the solve's, as in
+    `jc.solve`: a float64 indenter, material or load on a float32 grid is cast). The
+    solve is jitted: a second call with new values of the same shapes reuses the
+    compiled program.
     """
     if not isinstance(grid, Grid):
         raise TypeError(f"grid must be a jc.Grid, got {grid!r}")
@@ -168,7 +170,9 @@ def solve_normal(
             indenter, grid, material, times, program, np.asarray(target).reshape(1)
         )
         warn_if_too_large(indenter, grid, estimate)
-    dtype = jnp.result_type(h.dtype, grid.size.dtype)
+    # The grid's dtype is the solve's, as in `jc.solve` (a float64 indenter or material
+    # on a float32 grid is cast).
+    dtype = grid.size.dtype
     compliance = material.instantaneous_compliance
     return _solve(
         operator,

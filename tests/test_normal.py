@@ -173,6 +173,22 @@ def test_float32():
     assert rel < 2e-3
 
 
+def test_the_grid_dtype_is_the_solve_dtype():
+    """A float32 grid with Python-float (float64 under x64) indenter, material and
+    load solves in float32, as `jc.solve` does: the same pressure (the same rtol 1e-5,
+    the same iterations) as with every input in float32. It used to promote to float64
+    (and rtol 1e-8)."""
+    grid = jc.Grid((32, 32), jnp.asarray(4.0 * A_HZ, jnp.float32))
+    mixed = jc.solve_normal(grid, jc.Sphere(R), jc.Elastic(G, NU), force=W)
+    _, pure = hertz_solve(32, dtype=jnp.float32)
+    assert mixed.pressure.dtype == jnp.float32
+    assert int(mixed.iterations) == int(pure.iterations)
+    rel = float(jnp.abs(mixed.pressure - pure.pressure).max() / pure.pressure.max())
+    assert rel <= 1e-5, rel
+    scene = jc.Scene(grid, jc.Sphere(R), jc.Elastic(G, NU), jnp.zeros(1), jc.Force(W))
+    assert jc.solve(scene).pressure.dtype == jnp.float32
+
+
 @pytest.mark.parametrize(
     "make, match",
     [
