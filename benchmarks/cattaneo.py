@@ -12,7 +12,9 @@ Cases (SI units; rigid sphere R = 10 mm, W = 0.15 N, G = 1 MPa, nu = 0.3):
    coupled ("full") and uncoupled ("none"), and the stick radius of each against
    Cattaneo-Mindlin's (which only the uncoupled solve has); also the paper's coupled
    normal load alone (no tangential input, "full", one step) against the same
-   normal solve.
+   normal solve. And that ratio at several tolerances (float64, rtol 1e-4 .. 1e-8,
+   each solve's error against its own tightly solved reference, to read the ratio at
+   equal error) and in float32 (`--only-ratio-tolerance`: this alone, into the JSON).
 4. Spence (coupling "full", nu = 0.3, mu = 0.2): the normal load applied in 90
    increments on 105^2 cells over 2.3 a; the stick radius c/a at the end. Also in
    float32 (its default rtol 1e-5), whose c/a is compared with float64's, and in
@@ -201,11 +203,77 @@ def spence_versus_tolerance(rtols=(1e-5, 1e-6, 1e-7, 1e-8), n=105, width=2.3,
                 rows=rows)
 
 
+def ratio_versus_tolerance(rtols=(1e-4, 1e-5, 1e-6, 1e-7, 1e-8), n=256, width=4.0,
+                           mu=0.3, repeats=5):
+    """Section 3's fully coupled step and normal solve at several rtol (float64), each
+    against its own reference solved to 1e-11 / 1e-12: time, iterations and the error
+    (max over the grid / the reference's peak pressure), so that the ratio can be read
+    at equal error; then both in float32 at their default rtol (1e-5), their error
+    against the float64 references. Every input is cast to the grid's dtype."""
+    rows = []
+    refs = {}
+    for dtype, ladder in ((jnp.float64, rtols), (jnp.float32, (None,))):
+        grid = jc.Grid((n, n), jnp.asarray(width * A, dtype))
+        sphere = jc.Sphere(jnp.asarray(R, dtype))
+        material = jc.Elastic(jnp.asarray(G, dtype), jnp.asarray(NU, dtype))
+        op = jc.HalfSpace(grid)
+        op_full = jc.HalfSpace(grid, "full")
+        scene = jc.Scene(grid, sphere, material, times=jnp.zeros(1, dtype),
+                         normal=jc.Force(jnp.asarray(W, dtype)),
+                         x=jc.Force(jnp.asarray(0.5 * mu * W, dtype)), friction=mu,
+                         coupling="full")
+
+        def normal(rtol, op=op, grid=grid, sphere=sphere, material=material):
+            return jc.solve_normal(grid, sphere, material, force=jnp.asarray(W, dtype),
+                                   operator=op, solver=jc.PolonskyKeer(rtol=rtol))
+
+        if not refs:
+            refs["p_normal"] = np.asarray(normal(1e-12).pressure)
+            ref = jc.solve(scene, operator=op_full, rtol=1e-11)
+            refs["p_full"] = np.asarray(ref.pressure[0])
+            refs["q_full"] = np.asarray(ref.shear[0])
+            refs["stick"] = np.asarray(ref.stick[0])
+        for rtol in ladder:
+            normal_s, sn = timed(lambda rtol=rtol: normal(rtol), repeats)
+            full_s, sf = timed(
+                lambda rtol=rtol: jc.solve(scene, operator=op_full, rtol=rtol), repeats)
+            peak_n, peak_f = refs["p_normal"].max(), refs["p_full"].max()
+            rows.append(dict(
+                dtype=jnp.dtype(dtype).name, rtol=rtol, normal_s=normal_s,
+                normal_iterations=int(sn.iterations),
+                normal_error=float(np.abs(np.asarray(sn.pressure, np.float64)
+                                          - refs["p_normal"]).max() / peak_n),
+                full_s=full_s, full_iterations=int(sf.iterations[0]),
+                full_converged=bool(sf.converged[0]),
+                full_pressure_error=float(np.abs(np.asarray(sf.pressure[0], np.float64)
+                                                 - refs["p_full"]).max() / peak_f),
+                full_shear_error=float(np.abs(np.asarray(sf.shear[0], np.float64)
+                                              - refs["q_full"]).max() / peak_f),
+                full_stick_cells_differing=int(np.sum(np.asarray(sf.stick[0])
+                                                      != refs["stick"])),
+                ratio=full_s / normal_s))
+    return dict(n=n, width_over_a=width, mu=mu, reference_rtol=(1e-12, 1e-11),
+                rows=rows)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true")
     parser.add_argument("--out", default=str(ROOT / "benchmarks/results/cattaneo.json"))
+    parser.add_argument("--only-ratio-tolerance", action="store_true",
+                        help="run ratio_versus_tolerance alone and update its entry "
+                        "in --out")
     args = parser.parse_args()
+    if args.only_ratio_tolerance:
+        out = Path(args.out)
+        results = json.loads(out.read_text()) if out.exists() else {}
+        results["ratio_tolerance"] = ratio_versus_tolerance(
+            n=128 if args.quick else 256)
+        for row in results["ratio_tolerance"]["rows"]:
+            print("full / normal:", row)
+        out.write_text(json.dumps(results, indent=2))
+        print(f"updated {out}")
+        return
     sizes = [64, 128] if args.quick else [64, 128, 256, 512]
     results = dict(
         machine=dict(platform=platform.platform(), processor=platform.processor(),
@@ -217,6 +285,7 @@ def main():
         spence=spence(increments=30 if args.quick else 90),
         spence_float32=spence(increments=30 if args.quick else 90, dtype=jnp.float32),
         spence_tolerance=spence_versus_tolerance(increments=30 if args.quick else 90),
+        ratio_tolerance=ratio_versus_tolerance(n=128 if args.quick else 256),
     )
     for row in results["cattaneo_mindlin"] + results["targets"]:
         print(f"CM n={row['n']:4d} width={row['width_over_a']}a "
@@ -229,6 +298,8 @@ def main():
     print("Spence, float32:", results["spence_float32"])
     for row in results["spence_tolerance"]["rows"]:
         print("Spence, float64, rtol:", row)
+    for row in results["ratio_tolerance"]["rows"]:
+        print("full / normal:", row)
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(results, indent=2))
     print(f"wrote {args.out}")
