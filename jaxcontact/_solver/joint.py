@@ -47,7 +47,7 @@ after each of the first three iterations (`_EARLY`): the warm start's pressure i
 by the load increment, and converging the inner problem for its bound was wasted
 (Spence, 30 increments, one early update: 759 -> 668 iterations).
 Cells that came into contact since the last update start on their new disc, opposite
-to their slip increment (`_ENTRY_SLIP`: contact edges slip).
+to their slip increment (contact edges slip; `move_to_bound` in the loop).
 
 **Inner iteration** (projected, preconditioned, locally optimal CG):
 
@@ -82,8 +82,9 @@ to their slip increment (`_ENTRY_SLIP`: contact edges slip).
   Spence's ramp (90 increments) 3921 -> 1709 iterations (FFT preconditioner always:
   1548, but Cattaneo-Mindlin under load control in one step then takes 88 instead of
   55; with the switch 62); with the continuous symbols 1450, and 46 for that
-  Cattaneo-Mindlin step (56 at 256^2 over 4 a, 72 before); with `_HOLD_EARLY` and
-  `_FFT_RES` 1255, the Cattaneo-Mindlin steps unchanged;
+  Cattaneo-Mindlin step (56 at 256^2 over 4 a, 72 before); with no release at the
+  early bound updates (`_EARLY`) and `_FFT_RES` 1255, the Cattaneo-Mindlin steps
+  unchanged;
 - the step minimises the quadratic exactly over the subspace spanned by the
   preconditioned gradient's `p` part, its `q` part, and the previous change of `x` (a
   3x3 system): one exact line search per block, and the CG recurrence (the 2-d
@@ -104,9 +105,12 @@ to their slip increment (`_ENTRY_SLIP`: contact edges slip).
   slip cells turning on their discs (`fix_load`, `spread_load`: small or absent stick
   zones under strong coupling, which used to stall);
 - no restart when variables are freed (released slip cells, re-entering cells): the
-  previous step stays in the subspace, whose minimisation is exact anyway
-  (`_SET_RESTART`); every `resync_every` iterations the displacement of `x` itself is
-  transformed instead of the change (round-off drift).
+  previous step stays in the subspace, whose minimisation is exact anyway (restarting
+  there, as Polonsky-Keer, with `_FFT_RES` 3e-5 instead of 1e-4: Spence 90 x 105^2
+  1075 -> 1097 iterations, one-step Cattaneo-Mindlin "full" 40/44/53/49 -> 47/52/57/54;
+  restarting at every change of an active set or at bound updates was worse); every
+  `resync_every` iterations the displacement of `x` itself is transformed instead of
+  the change (round-off drift).
 
 **Cost** (2-core CPU, float64, n = 128, padded spectra 256 x 129): one iteration is
 three 3-component FFTs (forward of `z`, forward and inverse of the change), two
@@ -168,42 +172,28 @@ _DEBUG = False
 # 75 loads) 2387 -> 1342 iterations, max 34 -> 23, none worse; joint_robustness
 # 1731 -> 1730; Spence 90 x 105^2 1006 unchanged.
 _FLIP = 4.0
-_UPD_RESTART = False  # drop the previous step at bound updates
-_ZIGZAG = True  # cells bound to their disc by the last step are not released at once
-# 1: drop the previous step when an active set changes; 2: only when variables are
-# freed (released slip cells, re-entering cells), as Polonsky-Keer; 0: never. 2 -> 0,
-# with `_FFT_RES` 3e-5 -> 1e-4: Spence 90 x 105^2 1097 -> 1075 iterations;
-# Cattaneo-Mindlin "full" in one step 47/52/57/54 -> 40/44/53/49.
-_SET_RESTART = 0
 # Give up (converged=False, so that `contact_step` falls back to the rounds) when the
 # best residual has not halved for this many iterations: the lagged-bound iteration
 # can cycle on the stick set (seen under displacement control past gross sliding with
 # the total slip law, where the load fix of a load-controlled direction shifts every
 # slip cell back inside its disc). Converging runs halve it every few iterations.
 _STALL = 150
-_Q_GUESS = True  # first step under load control: q proportional to p
-_CURV_PRECOND = True  # disc curvature in the preconditioner of rotating cells
-_FOLLOW = True  # slip cells kept on their disc after each step
-_SLIDE_FIX = True  # load fix without stick cells keeps cells on their discs
-_TRANSPOSED = True  # spectra in (ky, kx) layout inside the loop
-_COARSE_PRECOND = True  # preconditioner on the unpadded grid (periodic)
 # Always update the bound after each of the first `_EARLY` iterations (the predictor's
 # p is off by the load increment). With `_SIGMA` 0.3 -> 0.5 (more frequent updates),
 # 1 -> 3: Spence 90 x 105^2 1201 -> 1097 iterations; Spence 30 increments (mu 0.1 /
 # 0.4; 64^2 over 3 a, nu 0.1) 522/607/459 -> 503/532/411; Cattaneo-Mindlin "full" in
 # one step 45/50/59/60 -> 47/52/57/54, its 10-step ramp at 64^2 178 -> 165. The
 # neighbours (2 or 4; 0.4 or 0.6) are within 1 % of the total, 1 / 0.3 is 9 % more.
-_EARLY = 3
 # At those early updates no slip cell is released: the bound moves by the whole load
 # increment in the same iteration, so the slip signs evaluated at the predictor's bound
 # are stale (Spence, 90 increments: ~700 cells released at the second iteration of
 # every increment, and back to slip at the third; 1450 -> 1365 iterations).
-_HOLD_EARLY = True
+_EARLY = 3
 # Below this residual the FFT preconditioner is kept right after a release (the
 # released cells are then few, near the stick edge, and the diagonal steps that follow
 # a release gain little): Spence, 90 increments 1365 -> 1255 iterations;
 # Cattaneo-Mindlin "full" in one step unchanged (at 1e-4: 77 -> 83 iterations at
-# 256^2 over 4 a, F = 0.9 mu W; with the restarts of `_SET_RESTART` = 2). 1e-3 gives
+# 256^2 over 4 a, F = 0.9 mu W; with the restarts then in use). 1e-3 gives
 # the same totals as 1e-4, 1 (always the FFT directions) 323 iterations for one
 # Cattaneo-Mindlin step at 105^2 (F = 0.9 mu W).
 _FFT_RES = 1e-4
@@ -218,17 +208,11 @@ _FFT_RES = 1e-4
 # 25, 26 / 1071 / 350, 465, 389 / 155; 3, 5, 8: Spence 1075, 998, 1004. The diagonal
 # alone (no full-plane inverse on rotating cells) 31, 25, 35, 26 / 2150.
 _ROT_BLEND_AFTER = _EARLY + 1
-# Cells that entered the contact since the last bound update start on their new disc,
-# opposite to their slip increment (contact edges slip: p, hence the bound, vanishes
-# there), rather than at q = 0, where they would count as stick until their slip
-# shows (Spence, 90 increments: 1255 -> 1201 iterations; Cattaneo-Mindlin "full" in
-# one step 46/54/56/77 -> 45/50/59/60).
-_ENTRY_SLIP = True
 # The load fix (`fix_load`): the stick cells carry the load deficit left by a step's
 # projections; where that leaves the load off by more than `_SPREAD_WHEN` x mu W (the
 # stick cells cannot take the deficit: they would leave their discs), or where no
 # cell sticks, the deficit is first spread over every contact cell by one common
-# shift found in `_SPREAD_NEWTON` Newton steps (`spread_load`; 0: off). With nu = 0.1
+# shift found in `_SPREAD_NEWTON` Newton steps (`spread_load`). With nu = 0.1
 # and F = 0.75 / 0.9 / 0.99 mu W in one step ("full", 64^2 over 4 a) the step took
 # 808 / 1410 / 1332 iterations through the fallbacks (the deficit on the few new
 # stick cells pushed them back out, the stall criterion handed over), now 20 / 23 /
@@ -262,11 +246,6 @@ def _inv_norm(q):
 def _sum2(a):
     """Per-component totals `(nd,)` of a vector field."""
     return jnp.sum(a, axis=(-2, -1))
-
-
-def _project(q, bound):
-    """Each cell's shear onto its disc `|q| <= bound`."""
-    return _onto_discs(q, bound, jnp.zeros(bound.shape, bool))
 
 
 def _onto_discs(q, bound, follow):
@@ -349,8 +328,7 @@ def joint_solve(
     """`joint_step`, also returning statistics: `applications` (equivalent coupled
     operator applications: a forward or an inverse transform of all components counts
     1/2; the preconditioner's unpadded transforms, about 1/4 of an application per
-    iteration, are not counted) and `counts` (unused (0), periodic resyncs, bound
-    updates, restarts)."""
+    iteration, are not counted) and `counts` (periodic resyncs, bound updates)."""
     nd = config.nd
     if nd not in (1, 2) or not config.coupled:
         raise ValueError("joint_step needs a coupled step with nd = 1 or 2")
@@ -401,14 +379,14 @@ def joint_solve(
     fft_precond = config.precondition and not grid.periodic
     if fft_precond:
         precondition = block_preconditioner(
-            operator, nn, xx, yy if nd == 2 else None, coarse=_COARSE_PRECOND,
-            compliance=compliance, poisson=poisson)
+            operator, nn, xx, yy if nd == 2 else None, compliance=compliance,
+            poisson=poisson)
 
     # Spectra in the (ky, kx) layout of `forward` below, from the operator's raw
     # spectra in that layout (held by `HalfSpace.with_transposed_spectra`, which
     # `jc.solve` builds before its time loop; transposing the symbols here cost ~3 ms
     # per step at 105^2, Spence 4.62 -> 4.22 s on one core).
-    if not grid.periodic and _TRANSPOSED:
+    if not grid.periodic:
         nn, xx, xy, yy, zx, zy, izx, izy = symbols(True)
         w_ky = jnp.swapaxes(w_ky, -1, -2)
     # Parseval weights folded into the (real) symbols once, outside the loop: the
@@ -457,7 +435,7 @@ def joint_solve(
             t22 = t22 + 2 * s_xy * (xr * yr + xi * yi) + s_yy * (yr * yr + yi * yi)
         return jnp.sum(jnp.stack([t11, t12, t22]), axis=(-2, -1))
 
-    if grid.periodic or not _TRANSPOSED:
+    if grid.periodic:
         def forward(x):
             return operator.forward(x)
 
@@ -627,8 +605,6 @@ def joint_solve(
         """Restore the loads: `shift_stick`, and where that leaves a load error above
         `_SPREAD_WHEN` x mu W or no cell sticks, `spread_load` first."""
         fixed = shift_stick(q, bound)
-        if not _SPREAD_NEWTON:
-            return fixed
         err = jnp.abs(area * _sum2(fixed) - tangential_target)
         err = _safe_div(jnp.max(jnp.where(fc, err, 0.0)), area * jnp.sum(bound))
         bad = (err > _SPREAD_WHEN) | ~jnp.any(stick_of(q, bound))
@@ -649,8 +625,6 @@ def joint_solve(
         deficit = _safe_div(tangential_target / area - _sum2(q), count)
         shift = jnp.where(fc[:, None, None], deficit[:, None, None] * where[None], 0.0)
         moved = q + shift
-        if not _SLIDE_FIX:
-            return _project(moved, bound)
         # No stick cell: every contact cell is on its disc; the shift moves them along
         # it (renormalised) rather than inside, where they would count as stick and
         # the stick set would cycle (displacement control past gross sliding with a
@@ -679,7 +653,7 @@ def joint_solve(
     bound_init = friction * p_init
     sliding_init = sliding_of(p_init)
     q_init = jnp.asarray(q0, dtype)
-    if any_force and _Q_GUESS:
+    if any_force:
         # No shear to start from (a first step): the load-controlled shear in
         # proportion to the pressure (inside the discs while |F| < mu W).
         total_p = area * jnp.sum(p_init)
@@ -701,7 +675,7 @@ def joint_solve(
         s=zeros_x, ks=zeros_x, sks=jnp.zeros((), dtype), have_prev=jnp.array(False),
         it=jnp.array(0), certified=jnp.array(True), updates=jnp.array(0),
         applications=jnp.asarray(1.5, dtype),
-        counts=jnp.zeros(4, jnp.int32), want=jnp.array(False), steady=jnp.array(False),
+        counts=jnp.zeros(2, jnp.int32), want=jnp.array(False), steady=jnp.array(False),
     )
 
     def exhausted(it, since):
@@ -733,10 +707,9 @@ def joint_solve(
         slip_cells = contact_t & ~stick
         lam_raw = -_dot(ds, q_hat)
         release = slip_cells & (lam_raw < 0) & ~sliding
-        if _ZIGZAG:  # cells bound to their disc by the last step are not freed at once
-            release = release & ~s["fresh"]
-        if _HOLD_EARLY:
-            release = release & ~(s["want"] & (s["it"] <= _EARLY))
+        # Cells bound to their disc by the last step are not freed at once, nor any
+        # cell at the early bound updates (`_EARLY`).
+        release = release & ~s["fresh"] & ~(s["want"] & (s["it"] <= _EARLY))
         # `_FLIP`: cells that cannot stick jump across their disc (no step variable)
         flip = release & (-lam_raw > _FLIP * c_tt * 2 * bound)
         release = release & ~flip
@@ -756,7 +729,7 @@ def joint_solve(
         r_p = jnp.where(free_p, g, 0)
         r_q = jnp.where(full[None], ds, tt * _dot(tt, ds)[None])
         weight = jnp.where(full, 1.0, jnp.where(
-            rotate, c_tt / (c_tt + curv_disc) if _CURV_PRECOND else 1.0, 0.0))
+            rotate, c_tt / (c_tt + curv_disc), 0.0))
         z_p_diag, pr_diag = w_p * r_p, weight[None] * r_q
         if fft_precond:
             # The full-plane inverse restricted to the free variables (contact cells;
@@ -779,17 +752,16 @@ def joint_solve(
             # The Jacobi direction `r / c_tt` (on the scale of the full-plane inverse);
             # `r_q` is already tangential on rotating cells.
             jacobi = r_q / c_tt
-            if _ROT_BLEND_AFTER is not None:
-                # A rotating cell's Hessian is the operator plus its disc curvature
-                # lambda / B. Where the curvature dominates (a large slip, e.g. a
-                # Cattaneo-Mindlin load in one step: median lambda / B = 24 c_tt at
-                # 256^2), the operator's diagonal `1 / c_tt` describes it better than
-                # its full-plane inverse: the two are interpolated with the curvature
-                # weight `c_tt / (c_tt + lambda / B)` (then scaled by it as before).
-                # Not in the first iterations of a step, while the bound still moves
-                # by the load increment and lambda / B is the predictor's.
-                blend = weight[None] * rot + (1 - weight)[None] * jacobi
-                rot = jnp.where(s["it"] > _ROT_BLEND_AFTER, blend, rot)
+            # A rotating cell's Hessian is the operator plus its disc curvature
+            # lambda / B. Where the curvature dominates (a large slip, e.g. a
+            # Cattaneo-Mindlin load in one step: median lambda / B = 24 c_tt at
+            # 256^2), the operator's diagonal `1 / c_tt` describes it better than
+            # its full-plane inverse: the two are interpolated with the curvature
+            # weight `c_tt / (c_tt + lambda / B)` (then scaled by it as before).
+            # Not in the first iterations of a step, while the bound still moves
+            # by the load increment and lambda / B is the predictor's.
+            blend = weight[None] * rot + (1 - weight)[None] * jacobi
+            rot = jnp.where(s["it"] > _ROT_BLEND_AFTER, blend, rot)
             pr = jnp.where(use_fft, weight[None] * jnp.where(full[None], m_r[1:], rot),
                            pr_diag)
             if nd == 2:
@@ -867,8 +839,7 @@ def joint_solve(
             p_new = rescale(p_new)
         # Slip cells that stay slip are put back ON their disc (the previous change
         # in the step may point inside it); the others are projected.
-        keep_on = ((slip_cells & ~release & ~sliding) if _FOLLOW
-                   else jnp.zeros_like(contact))
+        keep_on = slip_cells & ~release & ~sliding
         # Flipped cells (`_FLIP`): on their disc, opposite to their slip (with one
         # component, the other side).
         q_flip = -q if nd == 1 else -(bound * _inv_norm(ds))[None] * ds
@@ -883,13 +854,16 @@ def joint_solve(
 
         # A `cond`, not a `where`: the second projection (and its load fix) runs only on
         # the iterations that update the bound (Spence: 604 of 1046);
-        # entering cells are put on their discs there too (`_ENTRY_SLIP`).
+        # entering cells are put on their discs there too: opposite to their slip
+        # increment (contact edges slip: p, hence the bound, vanishes there), rather
+        # than at q = 0, where they would count as stick until their slip shows
+        # (Spence, 90 increments: 1255 -> 1201 iterations; Cattaneo-Mindlin "full" in
+        # one step 46/54/56/77 -> 45/50/59/60).
         def move_to_bound(q_):
             follow = contact_t & ~stick_of(q_, bound) & (p_new > 0) & ~sliding_new
-            if _ENTRY_SLIP:
-                entering = (~contact_t) & (p_new > 0) & ~sliding_new
-                q_ = jnp.where(entering[None], -ds * _inv_norm(ds)[None], q_)
-                follow = follow | entering
+            entering = (~contact_t) & (p_new > 0) & ~sliding_new
+            q_ = jnp.where(entering[None], -ds * _inv_norm(ds)[None], q_)
+            follow = follow | entering
             return settle_shear(q_, bound_new, follow, sliding_new)
 
         q_new = jax.lax.cond(upd, move_to_bound, lambda q_: q_, q_new)
@@ -906,9 +880,10 @@ def joint_solve(
         kd = jnp.where(periodic, kt - u, kt)
         applications = s["applications"] + 1.5
         ev_new = evaluate(x_new, u_new, s["scales"], bound_new, sliding_new)
-        changed = (jnp.any((p_new > 0) != contact) | jnp.any(ev_new["stick"] != stick)
-                   | jnp.any(release) | jnp.any(overlap))
         if _DEBUG:
+            changed = (jnp.any((p_new > 0) != contact)
+                       | jnp.any(ev_new["stick"] != stick) | jnp.any(release)
+                       | jnp.any(overlap))
             jax.debug.print(
                 "it {} res_n {:.2e} res_t {:.2e} alpha {} changed {} dC {} dS {} "
                 "rel {} ov {}", it, ev["res_n"], ev["res_t"], alpha, changed,
@@ -941,25 +916,17 @@ def joint_solve(
         want = (ev_new["residual"] <= _SIGMA * res_ref) | (
             ev_new["residual"] <= rtol) | exhausted(it, since) | (it <= _EARLY)
         applications = applications + 1.5 * final
-        if _SET_RESTART == 1:
-            set_restart = changed
-        elif _SET_RESTART == 2:  # only when variables are freed (Polonsky-Keer)
-            set_restart = jnp.any(release) | jnp.any(overlap)
-        else:
-            set_restart = jnp.array(False)
-        restart = set_restart | (upd & _UPD_RESTART)
         return dict(
             x=x_new, u=u_new, bound=bound_new, sliding=sliding_new, scales=scales_new,
             ev=ev_new, res_ref=res_ref,
             fresh=full & ~ev_new["stick"],
-            s=d, ks=kd, sks=jnp.sum(d * kd), have_prev=~restart,
+            s=d, ks=kd, sks=jnp.sum(d * kd), have_prev=jnp.array(True),
             it=it, certified=upd, updates=s["updates"] + upd,
             anchor=jnp.where(halved, ev_new["residual"], s["anchor"]),
             since=since,
             applications=applications, want=want,
             steady=~jnp.any(release) | (ev_new["residual"] < _FFT_RES),
-            counts=s["counts"] + jnp.stack(
-                [jnp.zeros((), bool), periodic, upd, restart]).astype(jnp.int32),
+            counts=s["counts"] + jnp.stack([periodic, upd]).astype(jnp.int32),
         )
 
     s = jax.lax.while_loop(cond, body, init)
