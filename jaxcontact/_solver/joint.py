@@ -199,11 +199,11 @@ _EARLY = 3
 _FFT_RES = 1e-4
 # The preconditioner of rotating slip cells interpolates between the operator's
 # full-plane inverse and its diagonal by their disc curvature (see `body`) once more
-# than this many iterations of a step are done (`None`: the full-plane inverse
-# always). Measured, float64, iterations of one Cattaneo-Mindlin step "full" (F = 0.5
-# / 0.9 mu W; 105^2 over 2.3 a, 256^2 over 4 a) / Spence 90 x 105^2 / three Spence
-# ramps of 30 increments at 64^2 over 3 a (mu 0.1, 0.4; nu 0.1) / a 10-step
-# Cattaneo-Mindlin ramp at 64^2: None: 43, 50, 47, 53 / 1000 / 356, 461, 387 / 150;
+# than this many iterations of a step are done. Measured, float64, iterations of one
+# Cattaneo-Mindlin step "full" (F = 0.5 / 0.9 mu W; 105^2 over 2.3 a, 256^2 over 4 a)
+# / Spence 90 x 105^2 / three Spence ramps of 30 increments at 64^2 over 3 a (mu 0.1,
+# 0.4; nu 0.1) / a 10-step Cattaneo-Mindlin ramp at 64^2: never (the full-plane
+# inverse always): 43, 50, 47, 53 / 1000 / 356, 461, 387 / 150;
 # 4: 28, 33, 34, 29 / 1005 / 328, 464, 378 / 143; from the first iteration: 24, 24,
 # 25, 26 / 1071 / 350, 465, 389 / 155; 3, 5, 8: Spence 1075, 998, 1004. The diagonal
 # alone (no full-plane inverse on rotating cells) 31, 25, 35, 26 / 2150.
