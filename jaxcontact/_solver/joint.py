@@ -37,8 +37,8 @@ frozen, which makes the inner problem the CONVEX quadratic programme
 
 (plus the load constraints), and it is updated to `mu p` (slip cells follow) as soon as
 the inner residual has dropped below `sigma` times the residual after the previous
-update: an inexact outer loop on the bound only (about 7 updates per increment of
-Spence's ramp to reach `1e-8`).
+update, or has not halved for `_UPDATE_WHEN_STUCK` iterations: an inexact outer loop
+on the bound only (about 7 updates per increment of Spence's ramp to reach `1e-8`).
 The update decided after an iteration is made inside the next one (the new bound and
 the slip cells moved onto it are part of that iteration's change of `x`, so it needs
 no operator application of its own); an updated iterate within the tolerance is
