@@ -682,7 +682,7 @@ def joint_solve(
         anchor=ev_init["residual"], since=jnp.array(0),
         fresh=jnp.zeros((nx, ny), bool),
         # previous change of x, its displacement, and their product
-        s=zeros_x, ks=zeros_x, sks=jnp.zeros((), dtype), have_prev=jnp.array(False),
+        s=zeros_x, ks=zeros_x, sks=jnp.zeros((), dtype),
         it=jnp.array(0), certified=jnp.array(True), updates=jnp.array(0),
         applications=jnp.asarray(1.5, dtype),
         counts=jnp.zeros(2, jnp.int32), want=jnp.array(False), steady=jnp.array(False),
@@ -817,7 +817,7 @@ def joint_solve(
         # with the previous change from its displacement (real space).
         h11, h12, h22 = quad_forms(forward(z))
         prev, kprev = s["s"], s["ks"]
-        have = s["have_prev"]
+        have = s["it"] > 0  # the previous change is never dropped (no restarts)
 
         def disc(a, b_):
             return jnp.sum(curv_disc * _dot(a, b_))
@@ -931,7 +931,7 @@ def joint_solve(
             x=x_new, u=u_new, bound=bound_new, sliding=sliding_new, scales=scales_new,
             ev=ev_new, res_ref=res_ref,
             fresh=full & ~ev_new["stick"],
-            s=d, ks=kd, sks=jnp.sum(d * kd), have_prev=jnp.array(True),
+            s=d, ks=kd, sks=jnp.sum(d * kd),
             it=it, certified=upd, updates=s["updates"] + upd,
             anchor=jnp.where(halved, ev_new["residual"], s["anchor"]),
             since=since,
