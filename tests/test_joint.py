@@ -657,9 +657,11 @@ def test_continuum_symbols_fix_the_wrapped_spectra():
 def test_periodic_coupled_step_converges_quickly():
     """A periodic grid (whose operator has no zero mode) through the joint solver with
     the default preconditioning: Cattaneo-Mindlin "full" under load control in two
-    steps converges in at most 150 iterations per step (61 and 34 measured; with the
+    steps converges in at most 150 iterations per step (24 and 32 measured; with the
     FFT directions on a periodic grid, 4208 with the fallbacks), meets both loads,
-    and keeps |q| <= mu p."""
+    and keeps |q| <= mu p. The first step's load is exactly at the gross-sliding limit
+    (F = mu W / 2 under W / 2): 61, then 83 while round-off decided the sliding, 193
+    with be2bcd9's stuck rule at every iteration."""
     a = hertz_radius()
     grid = jc.Grid((48, 48), 4 * a, periodic=True)
     force = 0.5 * MU * W
@@ -672,6 +674,31 @@ def test_periodic_coupled_step_converges_quickly():
     np.testing.assert_allclose(sol.tangential_force[:, 0], force, rtol=RTOL * 10)
     mag = np.sqrt(np.sum(sol.shear**2, axis=1))
     assert np.all(mag <= MU * sol.pressure * (1 + 1e-6) + 1e-12 * sol.pressure.max())
+
+
+def test_a_load_at_the_friction_limit_slides_at_once():
+    """A tangential load exactly at the limit, F = mu W, in one step, fully coupled and
+    oblique (0.6 rad), on a plain and on a periodic 32^2 grid: gross sliding, decided
+    to rtol / 2 (`tangential.gross_sliding`), not by the round-off of sum(mu p): every
+    bound update used to re-decide it, and each flip to partial slip released the
+    whole contact (38 and 4221 iterations through the fallbacks; 10 and 23 now).
+    Checked: converged in <= 30 iterations, flagged sliding, q = mu p along F
+    pointwise (1e-12 of max mu p), and the tangential force F to 1e-8."""
+    a = hertz_radius()
+    angle = 0.6
+    force = MU * W * np.array([np.cos(angle), np.sin(angle)])
+    for periodic in (False, True):
+        grid = jc.Grid((N, N), 4 * a, periodic=periodic)
+        scene = jc.Scene(grid, jc.Sphere(R), jc.Elastic(G, NU), jnp.zeros(1), jc.Force(W),
+                         x=jc.Force(force[0]), y=jc.Force(force[1]), friction=MU,
+                         coupling="full")
+        sol = jax.tree_util.tree_map(np.asarray, jc.solve(scene, rtol=RTOL))
+        assert sol.converged[0] and sol.sliding[0], (periodic, sol.residual)
+        assert sol.iterations[0] <= 30, (periodic, sol.iterations)
+        bound = MU * sol.pressure[0]
+        expected = bound[None] * (force / np.linalg.norm(force))[:, None, None]
+        assert np.max(np.abs(sol.shear[0] - expected)) <= 1e-12 * bound.max()
+        np.testing.assert_allclose(sol.tangential_force[0], force, rtol=RTOL)
 
 
 def test_held_transposed_spectra_give_the_same_step():

@@ -41,7 +41,7 @@ from jaxtyping import Array, Bool, Float, Int
 
 from .normal import inverse_preconditioner, polonsky_keer
 from .precondition import shear_x_preconditioner
-from .tangential import TangentialState, tangential_cg
+from .tangential import TangentialState, gross_sliding, tangential_cg
 
 
 class StepResult(NamedTuple):
@@ -182,7 +182,8 @@ def _rounds_step(
         if not all_force:
             return cg()
         # Gross sliding under load control: |F| >= mu W has no static solution; the
-        # indenter slides and q = mu p along F (reported, never iterated on).
+        # indenter slides and q = mu p along F (reported, never iterated on). A load
+        # at the limit to rtol / 2 slides too (`gross_sliding`: not round-off's call).
         limit = area * jnp.sum(bound)
         f_norm = jnp.sqrt(jnp.sum(tangential_target**2))
 
@@ -200,7 +201,7 @@ def _rounds_step(
                 applications=jnp.array(1),
             )
 
-        return jax.lax.cond((f_norm >= limit) & (f_norm > 0), slide, cg)
+        return jax.lax.cond(gross_sliding(f_norm, limit, config.rtol), slide, cg)
 
     # ---- Rounds of normal / tangential solves --------------------------------------
     def round_(state):

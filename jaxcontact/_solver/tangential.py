@@ -152,6 +152,16 @@ def slip_multiplier(w, q_hat, contact, force_control, target):
     return jnp.where(det != 0, fit, jnp.where(force_control, mean_w, target))
 
 
+def gross_sliding(force, limit, rtol):
+    """Whether a tangential load of magnitude `force` [N] slides the indenter against
+    the friction limit `limit = A sum(mu p) = mu W` [N]: `force >= (1 - rtol / 2)
+    limit`. A load AT the limit (no stick zone left) is then sliding whatever the
+    round-off of `sum(p)`, which otherwise decided it (and flipped it from one bound
+    update to the next); the sliding answer's load `mu W` is within `rtol / 2` of `F`
+    relative to `mu W`, as the tangential load residual requires."""
+    return (force >= limit * (1 - 0.5 * rtol)) & (force > 0)
+
+
 def tangential_lipschitz(blocks):
     """Largest eigenvalue of the tangential operator from its spectra `(xx, xy, yy)`.
 
