@@ -285,7 +285,8 @@ def test_joint_updates_the_bound_when_stuck():
     leave no stick cell, and the load spread (every iteration without stick cells) and
     the releases fell into a two-cycle that held the residual at 0.61 for ~38
     iterations (55 in the step). A bound update after 8 iterations without halving
-    (`joint._UPDATE_WHEN_STUCK`) breaks it: measured 27; every other step 6-18.
+    (`joint._UPDATE_WHEN_STUCK`) breaks it: measured 26 (27 before it waited for
+    two iterations without an update); every other step 6-18.
 
     Checked: every step converged within 40 joint iterations (no fallback: max_steps
     300), F_x held while |F_x| < mu W (gross sliding flagged in the last two steps
