@@ -26,12 +26,23 @@ from ._material.prony import Prony as Prony
 from ._material.zener import Zener as Zener
 from ._operator import HalfSpace as HalfSpace
 from ._scene import Scene as Scene
-from ._solution import Solution as Solution
+from ._solution import RESULTS as RESULTS, Solution as Solution
 from ._solve import solve as solve
 from ._sweep import sweep as sweep
 from ._solve_normal import NormalSolution as NormalSolution, solve_normal as solve_normal
 from ._subsurface import subsurface_stress as subsurface_stress
+from ._solver.base import (
+    AbstractStepSolver as AbstractStepSolver,
+    StepGuess as StepGuess,
+    StepProblem as StepProblem,
+    StepResult as StepResult,
+)
+from ._solver.fallback import Fallback as Fallback
+from ._solver.implicit import ImplicitAdjoint as ImplicitAdjoint
+from ._solver.joint import JointPCG as JointPCG
+from ._solver.load_search import LoadByDisplacement as LoadByDisplacement
 from ._solver.normal import PolonskyKeer as PolonskyKeer
+from ._solver.rounds import Rounds as Rounds
 from . import presets as presets
 from ._validate import EdgeContactWarning as EdgeContactWarning
 from ._validate import TimeStepWarning as TimeStepWarning

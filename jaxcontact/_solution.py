@@ -2,7 +2,32 @@
 
 import equinox as eqx
 import jax.numpy as jnp
+import lineax as lx
 from jaxtyping import Array, Bool, Float, Int
+
+
+class RESULTS(lx.RESULTS):  # pyright: ignore[reportGeneralTypeIssues]
+    """How a contact step ended: `successful`, or one member per way of failing (or
+    of not meeting a target), each message saying what to change. Extends
+    `lineax.RESULTS` (`successful`, `max_steps_reached`, ...)."""
+
+    stalled = (
+        "The contact iteration stopped making progress (its residual did not halve "
+        "for many iterations) and every fallback failed too. Try a tighter `rtol` on "
+        "a finer time discretisation (smaller load increments), or "
+        "`solver=jc.Rounds()`."
+    )
+    tangential_load_above_friction_limit = (
+        "A tangential load at or above the friction limit mu W: there is no static "
+        "solution; the indenter slides and the shear is mu p along the load (the "
+        "solution returned, with `sliding`), so the tangential force is mu W, not the "
+        "load asked for. Prescribe a tangential displacement to follow gross sliding."
+    )
+    adjoint_not_converged = (
+        "The adjoint (implicit gradient) linear solve did not converge. Try "
+        "`adjoint=jc.ImplicitAdjoint(max_steps=...)` with more steps, or a looser "
+        "`rtol`."
+    )
 
 
 class Solution(eqx.Module):
@@ -25,6 +50,8 @@ class Solution(eqx.Module):
       fan out; e.g. nu = 0.1, F = 0.99 mu W in one step): it is flagged the same way.
     - `converged`, `iterations`, `rounds`, `residual`: `(nt,)` per-step solver status
       (inner CG iterations summed over the normal/tangential rounds).
+    - `result`: `(nt,)` `jc.RESULTS`, how each step ended (`successful`, or why not);
+      `fallbacks`: `(nt,)` secondary solvers run (`jc.Fallback`).
     - `edge_contact` (property): `(nt,)` contact reaches the outer ring of cells.
     """
 
@@ -43,6 +70,8 @@ class Solution(eqx.Module):
     iterations: Int[Array, " nt"]
     rounds: Int[Array, " nt"]
     residual: Float[Array, " nt"]
+    result: RESULTS
+    fallbacks: Int[Array, " nt"]
 
     @property
     def edge_contact(self) -> Bool[Array, " nt"]:

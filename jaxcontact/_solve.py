@@ -16,10 +16,46 @@ from ._loading import Force
 from ._material.elastic import Elastic
 from ._operator import HalfSpace
 from ._scene import Scene, normal_targets, tangential_targets
-from ._solution import Solution
-from ._solver.coupled import StepConfig
-from ._solver.implicit import differentiable_step, empty_seed
+from ._solution import RESULTS, Solution
+from ._solver.base import AbstractStepSolver, StepGuess, StepProblem
+from ._solver.fallback import Fallback
+from ._solver.implicit import ImplicitAdjoint, differentiable_step, empty_seed
+from ._solver.joint import JointPCG
+from ._solver.load_search import LoadByDisplacement
 from ._solver.normal import hertzian_guess
+from ._solver.rounds import Rounds
+
+
+class _Controls(eqx.Module):
+    """What a scene asks of every step (static): shear components solved, coupling,
+    and which targets are loads."""
+
+    nd: int = eqx.field(static=True)
+    coupled: bool = eqx.field(static=True)
+    normal_force_control: bool = eqx.field(static=True)
+    tangential_force_control: tuple[bool, ...] = eqx.field(static=True)
+
+
+def default_solver(controls: _Controls, *, rtol=None, max_steps=2000, max_rounds=100,
+                   resync_every=25, precondition=True) -> AbstractStepSolver:
+    """The step solver `jc.solve` uses when none is given, from what the scene needs:
+
+    - no coupled tangential solve: `Rounds` (one round is exact);
+    - coupled: `Fallback(JointPCG(), Rounds())`, the rounds started where the joint
+      iteration gave up;
+    - and a load-controlled tangential direction: that, falling back in turn on
+      `LoadByDisplacement(JointPCG())` (a root search on the displacement).
+    """
+    rounds = Rounds(rtol=rtol, max_steps=max_steps, max_rounds=max_rounds,
+                    resync_every=resync_every, precondition=precondition)
+    if controls.nd == 0 or not controls.coupled:
+        return rounds
+    joint = JointPCG(rtol=rtol, max_steps=max_steps, resync_every=resync_every,
+                     precondition=precondition)
+    solver = Fallback(joint, rounds)
+    if any(controls.tangential_force_control):
+        solver = Fallback(solver, LoadByDisplacement(joint))
+    return solver
 
 
 def _operator_for(scene: Scene, nd: int) -> HalfSpace:
@@ -58,11 +94,12 @@ def _print_progress(step, n_steps):
 
 
 @eqx.filter_jit
-def _solve(scene: Scene, operator: HalfSpace, config: StepConfig, history_kind: str,
-           scheme: str, progress=None) -> Solution:
+def _solve(scene: Scene, operator: HalfSpace, controls: _Controls,
+           solver: AbstractStepSolver, adjoint: ImplicitAdjoint, throw: bool,
+           history_kind: str, scheme: str, progress=None) -> Solution:
     grid = scene.grid
     dtype = grid.size.dtype
-    nd = config.nd
+    nd = controls.nd
     nx, ny = grid.shape
     times = scene.times.astype(dtype)
     h0 = scene.indenter.gap(grid).astype(dtype)
@@ -84,7 +121,7 @@ def _solve(scene: Scene, operator: HalfSpace, config: StepConfig, history_kind: 
     use_total_slip = scene.slip == "total"
     hereditary = _history_for(material, times, history_kind, scheme)
     steps_dt = jnp.concatenate([jnp.zeros((1,), dtype), jnp.diff(times)])
-    if config.coupled and config.nd > 0 and config.method == "joint":
+    if controls.coupled and nd > 0:
         # The joint solver's layout, built once here rather than in every step.
         operator = operator.with_transposed_spectra()
 
@@ -105,7 +142,7 @@ def _solve(scene: Scene, operator: HalfSpace, config: StepConfig, history_kind: 
         p_start = jnp.where(p_prev > 0, p_start, 0)
         q_start = jnp.where(have_two, 2 * q_prev - q_prev2, q_prev)
         guess = p_start
-        if config.normal_force_control:
+        if controls.normal_force_control:
             # A `cond`: the Hertz guess (a 60-step bisection, ~0.9 ms at 105^2) is only
             # needed while there is no pressure to start from.
             e_star = 2 / (compliance * (1 - poisson))
@@ -113,11 +150,13 @@ def _solve(scene: Scene, operator: HalfSpace, config: StepConfig, history_kind: 
                 jnp.sum(p_start) > 0, lambda: p_start,
                 lambda: hertzian_guess(h0 + history[2], w_target, e_star, area))
         previous_slip = jnp.zeros_like(s_prev) if use_total_slip else s_prev
+        problem = StepProblem(
+            operator, compliance, jnp.asarray(poisson, dtype), friction, h0, history,
+            w_target, t_target, previous_slip, nd, controls.coupled,
+            controls.normal_force_control, controls.tangential_force_control)
         res, seed = differentiable_step(
-            operator, config, compliance, poisson, friction, h0, history,
-            w_target, t_target, previous_slip, p_start, q_start, normal_guess=guess,
-            adjoint_seed=seed,
-        )
+            solver, problem, StepGuess(p_start, q_start, normal=guess), seed,
+            adjoint=adjoint, throw=throw)
         if progress is not None:
             jax.debug.callback(progress, k, times.shape[0], ordered=True)
         tau_new = jnp.zeros((3, nx, ny), dtype).at[:nd].set(res.shear).at[2].set(res.pressure)
@@ -138,7 +177,7 @@ def _solve(scene: Scene, operator: HalfSpace, config: StepConfig, history_kind: 
     n_contact = jnp.sum(contact, axis=(1, 2))
     n_stick = jnp.sum(res.stick, axis=(1, 2))
     stick_ratio = jnp.where(n_contact > 0, n_stick / jnp.maximum(n_contact, 1), 0.0)
-    return Solution(
+    sol = Solution(
         times=times,
         pressure=res.pressure,
         shear=shear,
@@ -154,7 +193,21 @@ def _solve(scene: Scene, operator: HalfSpace, config: StepConfig, history_kind: 
         iterations=res.iterations,
         rounds=res.rounds,
         residual=res.residual,
+        result=res.result,
+        fallbacks=res.fallbacks,
     )
+    if throw:
+        sol = _raise_on_failure(sol)
+    return sol
+
+
+def _raise_on_failure(sol: Solution) -> Solution:
+    """`sol`, raising the message of the first step's failure (`RESULTS`) if any step
+    did not converge (at run time: works under `jit`, `vmap` and `grad`)."""
+    failed = ~sol.converged
+    first = jnp.argmax(failed)
+    item = jax.tree.map(lambda v: v[first], sol.result)
+    return item.error_if(sol, jnp.any(failed))
 
 
 def _warn_unstable_steps(material, times):
@@ -180,12 +233,14 @@ def _warn_unstable_steps(material, times):
 def solve(
     scene: Scene,
     *,
+    solver: AbstractStepSolver | None = None,
+    adjoint: ImplicitAdjoint | None = None,
+    throw: bool = True,
     rtol: float | None = None,
-    max_steps: int = 2000,
-    max_rounds: int = 100,
-    resync_every: int = 25,
-    method: str = "joint",
-    precondition: bool = True,
+    max_steps: int | None = None,
+    max_rounds: int | None = None,
+    resync_every: int | None = None,
+    precondition: bool | None = None,
     history: str = "auto",
     scheme: str = "constant",
     operator: HalfSpace | None = None,
@@ -199,19 +254,23 @@ def solve(
 
     **Other arguments:**
 
-    - `rtol`: relative tolerance of every contact solve (normal gap, Coulomb
-      conditions, loads). `None`: `1e-8` in float64, `1e-5` in float32.
-    - `max_steps`: iteration bound of each CG solve; `max_rounds`: bound on the
-      normal/tangential alternations of a coupled step.
-    - `resync_every`: recompute displacements exactly every this many CG iterations.
-    - `method`: how a coupled frictional step is solved: `"joint"` (default: one
-      projected CG over pressure and shear together, with a lagged friction bound) or
-      `"rounds"` (alternating normal and tangential solves). Either falls back to the
-      other safeguards of `_solver/coupled.py` when it fails; uncoupled steps always
-      take one round (exact).
-    - `precondition`: precondition the normal CG solves and the joint coupled
-      iteration with the full-plane inverse of the operator (default `True`; see
-      `jc.PolonskyKeer`). `False`: the diagonal only (plain Polonsky-Keer).
+    - `solver`: the step solver, an object (`jc.JointPCG()`, `jc.Rounds()`,
+      `jc.Fallback(primary, secondary)`, `jc.LoadByDisplacement(solver)`, ...). `None`
+      (default): chosen from the scene (`default_solver`): the rounds (exact in one)
+      without coupling; with coupling the joint iteration, falling back on the rounds
+      and, under tangential load control, on a root search over the displacement.
+    - `rtol`, `max_steps`, `max_rounds`, `resync_every`, `precondition`: options of
+      the default solver (only without `solver`; a solver object carries its own):
+      relative tolerance of every contact solve (`None`: `1e-8` in float64, `1e-5` in
+      float32), the iteration bound of each CG solve (2000), the bound on the
+      normal/tangential rounds (100), exact displacements every this many iterations
+      (25), the full-plane inverse preconditioners (`True`).
+    - `adjoint`: how gradients are computed, a `jc.ImplicitAdjoint` (default one).
+    - `throw`: `True` (default): raise when a step does not converge, with the
+      `jc.RESULTS` message of the first such step (at run time, also under `jit`);
+      `False`: return the flags (`converged`, `result`) and carry on. A
+      non-converged adjoint raises with `throw=True` and gives NaN gradients with
+      `False`.
     - `history`: `"auto"` (default: none for an elastic material, the O(Nt) recursion
       for a material with a creep series, the direct sum otherwise), `"recursive"` or
       `"direct"` (the O(Nt^2) sum of the paper, Eqs. 12-13; a reference).
@@ -224,8 +283,9 @@ def solve(
       every 5 % of the steps, as the steps complete), or a callable
       `f(step_index, n_steps)` called after each step (through `jax.debug.callback`).
 
-    **Returns:** a `jc.Solution`. Steps that do not converge are flagged in
-    `converged` (the time stepping carries on); nothing fails silently.
+    **Returns:** a `jc.Solution`; `result` says per step how it ended (`jc.RESULTS`:
+    `successful`, or why not, or `tangential_load_above_friction_limit` for a load
+    beyond `mu W`, which slides and is not raised).
 
     The scene decides what runs: no tangential solve when `friction` is zero or there is
     no tangential input and no coupling; no y solve unless there is a y input or the
@@ -233,13 +293,28 @@ def solve(
     """
     if not isinstance(scene, Scene):
         raise TypeError(f"scene must be a jc.Scene, got {scene!r}")
-    for name, value in (("max_steps", max_steps), ("max_rounds", max_rounds),
-                        ("resync_every", resync_every)):
-        _validate.positive_int(name, value)  # TypeError / ValueError naming it
-    if not isinstance(precondition, bool):
+    options = dict(rtol=rtol, max_steps=max_steps, max_rounds=max_rounds,
+                   resync_every=resync_every, precondition=precondition)
+    given = [name for name, value in options.items() if value is not None]
+    if solver is not None:
+        if not isinstance(solver, AbstractStepSolver):
+            raise TypeError(f"solver must be a jaxcontact step solver (e.g. "
+                            f"jc.JointPCG()), got {solver!r}")
+        if given:
+            raise TypeError(
+                f"{', '.join(given)} configure the default solver; with solver= pass "
+                f"them to the solver object (e.g. jc.JointPCG(rtol=...))")
+    for name in ("max_steps", "max_rounds", "resync_every"):
+        if options[name] is not None:
+            _validate.positive_int(name, options[name])  # TypeError / ValueError
+    if precondition is not None and not isinstance(precondition, bool):
         raise TypeError(f"precondition must be a bool, got {precondition!r}")
-    if method not in ("joint", "rounds"):
-        raise ValueError(f'method must be "joint" or "rounds", got {method!r}')
+    if adjoint is None:
+        adjoint = ImplicitAdjoint()
+    elif not isinstance(adjoint, ImplicitAdjoint):
+        raise TypeError(f"adjoint must be a jc.ImplicitAdjoint, got {adjoint!r}")
+    if not isinstance(throw, bool):
+        raise TypeError(f"throw must be a bool, got {throw!r}")
     if history not in ("auto", "recursive", "direct"):
         raise ValueError(f'history must be "auto", "recursive" or "direct", got {history!r}')
     if scheme not in ("constant", "linear"):
@@ -266,22 +341,17 @@ def solve(
                 f"{' with tangential_y=True' if n_dir == 2 else ''}"
             )
     nd = scene.tangential_directions
-    dtype = scene.grid.size.dtype
-    if rtol is None:
-        rtol = 1e-8 if jnp.finfo(dtype).bits >= 64 else 1e-5
     _, force_control = tangential_targets(scene, nd)
-    config = StepConfig(
+    controls = _Controls(
         nd=nd,
         coupled=nd > 0 and scene.coupling != "none",
         normal_force_control=isinstance(scene.normal, Force),
-        tangential_force_control=force_control,
-        rtol=float(rtol),
-        max_steps=max_steps,
-        max_rounds=max_rounds,
-        resync_every=resync_every,
-        method=method,
-        precondition=precondition,
+        tangential_force_control=tuple(bool(f) for f in force_control),
     )
+    if solver is None:
+        solver = default_solver(
+            controls, **{name: value for name, value in options.items()
+                         if value is not None})
     if operator is None:
         operator = _operator_for(scene, nd)
     if progress is True:
@@ -290,4 +360,5 @@ def solve(
         progress = None
     elif progress is not None and not callable(progress):
         raise TypeError(f"progress must be None, a bool or a callable, got {progress!r}")
-    return _solve(scene, operator, config, history, scheme, progress)
+    return _solve(scene, operator, controls, solver, adjoint, throw, history, scheme,
+                  progress)

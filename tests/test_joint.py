@@ -1,10 +1,10 @@
-r"""The joint (p, q) solver of a coupled step against the normal/tangential rounds, and
-the safeguards of `contact_step` (fallbacks, load control by a root search).
+r"""The joint (p, q) solver of a coupled step (`jc.JointPCG`) against the normal/
+tangential rounds (`jc.Rounds`), and the safeguards of `jc.solve`'s default solver
+(`jc.Fallback`s onto the rounds and the load root search `jc.LoadByDisplacement`).
 
-The rounds (`coupled._rounds_step`) are validated on their own in test_partial_slip.py
-(Cattaneo-Mindlin, Spence, pointwise Coulomb, the dense reference). The joint solver
-(`joint.joint_step`, called here WITHOUT the fallbacks of `contact_step`, so that a
-joint failure shows) solves the same discrete problem along a different iteration
+The rounds are validated on their own in test_partial_slip.py (Cattaneo-Mindlin,
+Spence, pointwise Coulomb, the dense reference). The joint solver (called here WITHOUT
+the fallbacks, so that a joint failure shows) solves the same discrete problem along a different iteration
 path; both stop at rtol = 1e-8 on L2 norms of the contact violations, so pointwise they
 agree to about `2 rtol n` of max p (see `same` in test_partial_slip.py), and their
 stick sets agree up to cells whose |q| is within that tolerance of mu p.
@@ -16,7 +16,7 @@ compilation dominates, so the cases that need their own programs are marked slow
 The issue's load-control failure (Zener, total slip law, coupled, F_x load-controlled:
 the rounds ran out at steps 13-20) is checked through `jc.solve` with both methods: the
 joint solver converges on it directly; the rounds are rescued by the load root search
-of `contact_step` (displacement-controlled evaluations).
+(`jc.LoadByDisplacement`: displacement-controlled evaluations).
 
 Parameters: rigid sphere R = 10 mm, G = 1 MPa, nu = 0.3, W = 0.15 N, mu = 0.3, grid of
 side 4a (a: Hertz radius).
@@ -31,8 +31,7 @@ import numpy as np
 import pytest
 
 import jaxcontact as jc
-from jaxcontact._solver.coupled import StepConfig, _rounds_step, contact_step
-from jaxcontact._solver.joint import joint_step
+from jaxcontact._solve import _Controls, default_solver
 from jaxcontact._solver.normal import hertzian_guess
 from jaxcontact._solver.precondition import block_preconditioner, continuum_symbols
 
@@ -56,10 +55,24 @@ def slip_distance():
     return 3 * MU * W * (2 - NU) / (16 * G * hertz_radius())
 
 
+def step_solver(method, nd, fc, rtol=RTOL, max_steps=2000, max_rounds=100):
+    """`"joint"`: `jc.JointPCG` alone (a failure shows); `"rounds"`: `jc.Rounds`;
+    `"step"`: `jc.solve`'s default composition (with its fallbacks)."""
+    if method == "joint":
+        return jc.JointPCG(rtol=rtol, max_steps=max_steps)
+    if method == "rounds":
+        return jc.Rounds(rtol=rtol, max_steps=max_steps, max_rounds=max_rounds)
+    controls = _Controls(nd=nd, coupled=True, normal_force_control=True,
+                         tangential_force_control=fc)
+    return default_solver(controls, rtol=rtol, max_steps=max_steps,
+                          max_rounds=max_rounds)
+
+
 @functools.cache
 def stepper(method, coupling, x_force, dtype=jnp.float64, n=N, rtol=RTOL, max_steps=2000,
             max_rounds=100):
-    """A jitted scan over `(W_k, T_k)` with one step solver, as `_solve.py` steps.
+    """A jitted scan over `(W_k, T_k)` with one step solver on `jc.StepProblem`s, as
+    `_solve.py` steps (one program shared by the cases of a configuration).
 
     `memory` (dynamic) is 1 for the incremental law, 0 for the total law; `nu`
     (dynamic) is the Poisson ratio.
@@ -68,10 +81,7 @@ def stepper(method, coupling, x_force, dtype=jnp.float64, n=N, rtol=RTOL, max_st
     grid = jc.Grid((n, n), jnp.asarray(4 * hertz_radius(), dtype))
     op = jc.HalfSpace(grid, coupling, tangential_y=nd == 2)
     fc = (x_force, True)[:nd]
-    cfg = StepConfig(nd=nd, coupled=True, normal_force_control=True,
-                     tangential_force_control=fc, rtol=rtol, max_steps=max_steps,
-                     max_rounds=max_rounds, resync_every=25, method="joint")
-    solver = {"joint": joint_step, "rounds": _rounds_step, "step": contact_step}[method]
+    solver = step_solver(method, nd, fc, rtol, max_steps, max_rounds)
     h0 = jc.Sphere(R).gap(grid).astype(dtype)
     history = jnp.zeros((3, n, n), dtype)
 
@@ -80,8 +90,9 @@ def stepper(method, coupling, x_force, dtype=jnp.float64, n=N, rtol=RTOL, max_st
         w, t, mu, memory, nu = inputs
         guess = jnp.where(jnp.sum(p_prev) > 0, p_prev, hertzian_guess(
             h0, w, 2 * G / (1 - nu), grid.cell_area))
-        res = solver(op, cfg, jnp.asarray(1 / G, dtype), nu, mu, h0,
-                     history, w, t, memory * s_prev, p_prev, q_prev, normal_guess=guess)
+        problem = jc.StepProblem(op, jnp.asarray(1 / G, dtype), nu, mu, h0, history, w,
+                                 t, memory * s_prev, nd, True, True, fc)
+        res = solver.solve(problem, jc.StepGuess(p_prev, q_prev, normal=guess))
         return (res.pressure, res.shear, res.slip), res
 
     @jax.jit
@@ -121,7 +132,7 @@ def solved(method, name, memory):
                                                   float(memory)))
 
 
-# Cases where the joint solver alone is known to give up (`contact_step` then falls
+# Cases where the joint solver alone is known to give up (the default solver then falls
 # back to the rounds): none at present. The last step of "delta_x ramp to sliding"
 # (W fixed, delta_x = 1.5 x the sliding distance) used to cycle on the stick set: the
 # load fix of the load-controlled y direction shifted every slip cell back inside its
@@ -132,7 +143,7 @@ JOINT_FAILS = set()
 # Cases in the default run: one compiled configuration (coupling "full", both tangential
 # directions load-controlled). The displacement-controlled ramp and the semi-coupled
 # case each compile their own programs (joint, rounds, and for the fallback case
-# `contact_step`): slow.
+# the default solver): slow.
 _SLOW_CASES = {"delta_x ramp to sliding", "semi-coupled x, CM"}
 
 
@@ -141,7 +152,7 @@ _SLOW_CASES = {"delta_x ramp to sliding", "semi-coupled x, CM"}
     pytest.param(c, marks=pytest.mark.slow) if c in _SLOW_CASES else c for c in CASES])
 def test_joint_matches_rounds(name, law):
     """Same (p, q, stick) as the rounds, at every step: the joint solver alone
-    (without fallback), or, in the known failing case, `contact_step` (joint, then
+    (without fallback), or, in the known failing case, the default solver (joint, then
     the fallback) after the joint solver has flagged its failure honestly."""
     memory = law == "incremental"
     joint, rounds = solved("joint", name, memory), solved("rounds", name, memory)
@@ -342,7 +353,7 @@ def test_joint_flips_wrong_slip_cells_with_two_shear_components():
     than a move across their disc could undo are put on their disc opposite to their
     slip (`joint._FLIP`). Freed instead (before), two such cells were released every
     other iteration and the next step undid it: the joint loop stalled (1039
-    iterations through the fallbacks of `contact_step`; now 15, 21 with the flip
+    iterations through the fallbacks of the default solver; now 15, 21 with the flip
     alone)."""
     _check_oblique_one_step(nu=0.0, ratio=0.95, angle=0.7)
 
@@ -430,8 +441,8 @@ def test_slip_multiplier_recovers_the_rigid_displacement():
 
 
 @pytest.mark.slow
-def test_contact_step_never_claims_a_wrong_answer():
-    """`contact_step` (joint, then the rounds, then the load root search) never puts a
+def test_default_solver_never_claims_a_wrong_answer():
+    """the default solver (joint, then the rounds, then the load root search) never puts a
     converged flag on a wrong answer. With an unreachable tolerance (rtol 1e-17, below
     the float64 round-off of the residual) and the tightest bounds (one joint iteration
     and its forced bound update, one round of one-iteration solves) it reports
@@ -467,7 +478,7 @@ def test_contact_step_never_claims_a_wrong_answer():
 @pytest.mark.slow
 @pytest.mark.parametrize("method", ["step", "joint"])
 def test_float32(method):
-    """float32 through `contact_step` (method "joint", with its fallbacks) and through
+    """float32 through the default solver (joint, with its fallbacks) and through
     the joint solver alone (no fallback: a cell projected onto its disc must not count
     as stick by round-off): converges at rtol 1e-5 and matches the float64 joint
     solution to 1e-3 of max p."""
@@ -495,9 +506,16 @@ def zener_scene(slip="total", n=48, steps=21, x=jc.Force(0.0225)):
                     normal=jc.Force(0.15), x=x, friction=0.3, coupling="full", slip=slip)
 
 
+SOLVERS = {
+    "joint": None,  # jc.solve's default: joint, the rounds, the load root search
+    "rounds": jc.Fallback(jc.Rounds(), jc.LoadByDisplacement(jc.Rounds())),
+}
+
+
 @functools.cache
 def zener(method):
-    return jax.tree_util.tree_map(np.asarray, jc.solve(zener_scene(), method=method))
+    return jax.tree_util.tree_map(
+        np.asarray, jc.solve(zener_scene(), solver=SOLVERS[method], throw=False))
 
 
 # Slow: each method compiles the whole jc.solve pipeline (~200 s under the loaded
@@ -544,9 +562,19 @@ def test_zener_found_displacement_reproduces_the_load():
     assert np.max(np.abs(force - 0.0225)) <= 1e-5 * 0.0225
 
 
-def test_solve_rejects_unknown_method():
-    with pytest.raises(ValueError, match="method"):
-        jc.solve(zener_scene(n=8, steps=2), method="newton")
+def test_solve_takes_solver_objects_only():
+    """A solver is an object; the options of the default solver cannot be mixed with
+    one (they would be silently ignored); the old `method=` strings are gone."""
+    scene = zener_scene(n=8)
+    with pytest.raises(TypeError, match="solver"):
+        jc.solve(scene, solver="rounds")
+    with pytest.raises(TypeError, match="rtol"):
+        jc.solve(scene, solver=jc.Rounds(), rtol=1e-6)
+    with pytest.raises(TypeError, match="method"):
+        jc.solve(scene, method="rounds")
+    with pytest.raises(ValueError, match="JointPCG cannot solve"):
+        jc.solve(jc.Scene(scene.grid, scene.indenter, scene.material, scene.times,
+                          scene.normal), solver=jc.JointPCG())
 
 
 # ---- The preconditioner of the joint iteration ------------------------------------------
@@ -711,16 +739,20 @@ def test_held_transposed_spectra_give_the_same_step():
     n = 24
     grid = jc.Grid((n, n), 4 * hertz_radius())
     op = jc.HalfSpace(grid, "full")
-    cfg = StepConfig(nd=2, coupled=True, normal_force_control=True,
-                     tangential_force_control=(True, True), rtol=RTOL, max_steps=500,
-                     max_rounds=100, resync_every=25, method="joint")
     h0 = jc.Sphere(R).gap(grid)
     zeros = jnp.zeros((n, n))
     guess = hertzian_guess(h0, W, 2 * G / (1 - NU), grid.cell_area)
-    step = eqx.filter_jit(lambda operator: joint_step(
-        operator, cfg, 1 / G, NU, MU, h0, jnp.zeros((3, n, n)), W,
-        jnp.array([0.4 * MU * W, 0.0]), jnp.zeros((2, n, n)), zeros,
-        jnp.zeros((2, n, n)), normal_guess=guess))
+    solver = jc.JointPCG(rtol=RTOL, max_steps=500)
+
+    @eqx.filter_jit
+    def step(operator):
+        problem = jc.StepProblem(
+            operator, jnp.asarray(1 / G), jnp.asarray(NU), jnp.asarray(MU), h0,
+            jnp.zeros((3, n, n)), jnp.asarray(W), jnp.array([0.4 * MU * W, 0.0]),
+            jnp.zeros((2, n, n)), 2, True, True, (True, True))
+        return solver.solve(problem, jc.StepGuess(zeros, jnp.zeros((2, n, n)),
+                                                  normal=guess))
+
     a, b = step(op), step(op.with_transposed_spectra())
     assert bool(a.converged) and int(a.iterations) > 5
     for field in ("pressure", "shear", "iterations", "approach", "delta_t"):

@@ -35,16 +35,62 @@ active-set changes (a cell entering or leaving contact or the stick zone), where
 solution is only directionally differentiable.
 """
 
+from typing import NamedTuple
+
+import equinox as eqx
 import jax
 import jax.numpy as jnp
-from jax.scipy.sparse.linalg import gmres
+import lineax as lx
 
-from .coupled import StepConfig, contact_step
+from .._solution import RESULTS
+from .base import AbstractStepSolver, StepGuess, StepProblem
 from .normal import inverse_preconditioner
 from .precondition import shear_x_preconditioner
 
 
-def _displacements(operator, config: StepConfig, compliance, poisson, p, q):
+class _Spec(NamedTuple):
+    """The static shape of a step's residual (from its `StepProblem`)."""
+
+    nd: int
+    coupled: bool
+    normal_force_control: bool
+    tangential_force_control: tuple[bool, ...]
+    precondition: bool
+
+
+class ImplicitAdjoint(eqx.Module):
+    """Gradients of each step by the implicit function theorem (see the module docs):
+    one adjoint linear solve per step, nothing of the forward iterations stored.
+
+    **Arguments:**
+
+    - `rtol`: relative tolerance of the adjoint solve; `None`: the step solver's.
+    - `max_steps`: iteration bound of the adjoint solve (conjugate-gradient iterations
+      of the frictionless and uncoupled "x" adjoints; GMRES iterations otherwise).
+    - `restart`: GMRES restart length.
+    - `precondition`: precondition the conjugate-gradient adjoints with the full-plane
+      inverse of the operator (as the forward solvers).
+
+    A solve that does not reach `rtol` within `max_steps` is reported, never silent:
+    `jc.solve(..., throw=True)` raises `RESULTS.adjoint_not_converged` when the
+    gradient is computed; with `throw=False` that step's cotangents are NaN.
+    """
+
+    rtol: float | None = eqx.field(static=True, default=None)
+    max_steps: int = eqx.field(static=True, default=2000)
+    restart: int = eqx.field(static=True, default=40)
+    precondition: bool = eqx.field(static=True, default=True)
+
+    def __check_init__(self):
+        if self.rtol is not None and not (0 < self.rtol < 1):
+            raise ValueError(f"rtol must be in (0, 1), got {self.rtol!r}")
+        for name in ("max_steps", "restart"):
+            value = getattr(self, name)
+            if not (isinstance(value, int) and value >= 1):
+                raise ValueError(f"{name} must be a positive integer, got {value!r}")
+
+
+def _displacements(operator, config: _Spec, compliance, poisson, p, q):
     """`(u_z, u_t)` = `C K (q, p)`: the operator built for the scene carries exactly the
     blocks the step uses (its coupling mode, and `q_y` only when `nd = 2`)."""
     nx, ny = p.shape
@@ -90,9 +136,9 @@ def _residual(operator, config, frozen, x, theta):
     if nd == 1:
         slipping = bound[None] * slip_sign
     else:
-        mag = jnp.sqrt(jnp.sum(s * s, axis=0))
-        safe = jnp.where(mag > 0, mag, 1.0)
-        slipping = -bound[None] * s / safe[None]
+        sq = jnp.sum(s * s, axis=0)
+        safe = jnp.sqrt(jnp.where(sq > 0, sq, 1.0))  # no NaN derivative at s = 0
+        slipping = jnp.where(sq > 0, -bound / safe, 0.0)[None] * s
     f_q = jnp.where(stick[None], s / kt, jnp.where(contact[None], q - slipping, q))
 
     f_dt = []
@@ -107,8 +153,11 @@ def _residual(operator, config, frozen, x, theta):
     if all(config.tangential_force_control):
         # Gross sliding under load control: q = mu p along F; delta_t = mean over the
         # contact of u_t + history_t (the rigid-body drift has no stick cell to fix it).
-        f_norm = jnp.sqrt(jnp.sum(t_target**2))
-        direction = t_target / jnp.where(f_norm > 0, f_norm, 1.0)
+        # A safe norm: sqrt at 0 has an infinite derivative (NaN gradients for a
+        # load program starting at zero, where the direction is never used).
+        f_sq = jnp.sum(t_target**2)
+        f_norm = jnp.sqrt(jnp.where(f_sq > 0, f_sq, 1.0))
+        direction = jnp.where(f_sq > 0, t_target / f_norm, 0.0)
         f_q_slide = jnp.where(contact[None], q - bound[None] * direction[:, None, None], q)
         mean = jnp.sum(jnp.where(contact[None], base, 0), axis=(1, 2)) / jnp.maximum(n_contact, 1)
         f_dt_slide = dt - mean / kt
@@ -138,7 +187,7 @@ def _set_adjoint(a_full, active, load_control, a, b_bar, z_bar, guess, rtol, max
     with `precondition` (`r -> M r`, an approximate inverse of `a_full`, e.g.
     `normal.inverse_preconditioner`), projected PCG with `P M P`: two FFT pairs per
     iteration, several times fewer iterations (as the forward `normal.py`).
-    **Returns:** `(lambda, lam_m)`.
+    **Returns:** `(lambda, lam_m, converged)`.
     """
     dtype = b_bar.dtype
     c = active.astype(dtype)
@@ -180,7 +229,8 @@ def _set_adjoint(a_full, active, load_control, a, b_bar, z_bar, guess, rtol, max
         return v, r, d, rz_new, it + 1
 
     z = apply_m(r)
-    v, _, _, _, _ = jax.lax.while_loop(cond, body, (v, r, z, jnp.sum(r * z), jnp.array(0)))
+    v, r, _, _, _ = jax.lax.while_loop(cond, body, (v, r, z, jnp.sum(r * z), jnp.array(0)))
+    converged = jnp.sum(r * r) <= limit
     mu = mu0 + v
     a_mu = a_full(mu)
     if load_control:
@@ -189,7 +239,7 @@ def _set_adjoint(a_full, active, load_control, a, b_bar, z_bar, guess, rtol, max
     else:
         lam_m = z_bar + jnp.sum(mu)
         shift = 0.0
-    return jnp.where(active, mu, b_bar - a_mu - shift), lam_m
+    return jnp.where(active, mu, b_bar - a_mu - shift), lam_m, converged
 
 
 def _area_scale(operator, contact):
@@ -212,10 +262,10 @@ def _normal_adjoint(operator, config, frozen, theta, x_bar, guess, rtol, maxiter
     if config.precondition:
         precondition = inverse_preconditioner(
             operator, operator.normal_spectrum(poisson), poisson)
-    lam_p, lam_dz = _set_adjoint(
+    lam_p, lam_dz, ok = _set_adjoint(
         a_full, contact, config.normal_force_control, _area_scale(operator, contact),
         p_bar, dz_bar, guess[0], rtol, maxiter, precondition)
-    return lam_p, q_bar, lam_dz, dt_bar
+    return (lam_p, q_bar, lam_dz, dt_bar), ok
 
 
 def _uncoupled_x_adjoint(operator, config, frozen, theta, x_bar, guess, rtol, maxiter,
@@ -240,16 +290,16 @@ def _uncoupled_x_adjoint(operator, config, frozen, theta, x_bar, guess, rtol, ma
     precondition = None
     if config.precondition:
         precondition = shear_x_preconditioner(operator, poisson)
-    lam_q, lam_dt = _set_adjoint(
+    lam_q, lam_dt, ok_t = _set_adjoint(
         a_full, stick, config.tangential_force_control[0], _area_scale(operator, contact),
         q_bar[0], dt_bar[0], guess[1][0], rtol, maxiter, precondition)
     lam_q, lam_dt = lam_q[None], lam_dt[None]
     zero = jnp.zeros((), p_bar.dtype)
     coupling = residual_vjp((jnp.zeros_like(p_bar), lam_q, zero, lam_dt))
-    lam_p, _, lam_dz, _ = _normal_adjoint(
+    (lam_p, _, lam_dz, _), ok_n = _normal_adjoint(
         operator, config, frozen, theta,
         (p_bar - coupling[0], q_bar, dz_bar - coupling[2], dt_bar), guess, rtol, maxiter)
-    return lam_p, lam_q, lam_dz, lam_dt
+    return (lam_p, lam_q, lam_dz, lam_dt), ok_t & ok_n
 
 
 def _slip_out(operator, config, x, theta, kt):
@@ -260,7 +310,7 @@ def _slip_out(operator, config, x, theta, kt):
     return ut + history[: config.nd] - dt[:, None, None] * kt
 
 
-def _make_attach(config: StepConfig, rtol: float, maxiter: int):
+def _make_attach(config: _Spec, adjoint: ImplicitAdjoint, rtol: float, throw: bool):
     """A function `x, slip, seed = attach(x, slip, frozen, theta, operator, seed)` that
     returns `x`, `slip` unchanged and whose vector-Jacobian product is the implicit one.
 
@@ -269,6 +319,7 @@ def _make_attach(config: StepConfig, rtol: float, maxiter: int):
     `seed` input), used as the initial guess of this step's adjoint solve: consecutive
     steps have close adjoints. Its own cotangent never enters a parameter gradient.
     """
+    maxiter = adjoint.max_steps
 
     @jax.custom_vjp
     def attach(x, slip, frozen, theta, operator, seed):
@@ -293,26 +344,35 @@ def _make_attach(config: StepConfig, rtol: float, maxiter: int):
                                   x, theta)
 
         def by_gmres():
-            lam, _ = gmres(lambda v: residual_vjp(v)[0], x_bar, x0=guess, tol=rtol,
-                           atol=0.0, restart=40, maxiter=maxiter,
-                           solve_method="incremental")
-            return lam
+            transposed = lx.FunctionLinearOperator(
+                lambda v: residual_vjp(v)[0], jax.eval_shape(lambda: x_bar))
+            # lineax counts restart cycles: `max_steps` iterations in cycles.
+            cycles = max(1, -(-maxiter // adjoint.restart))
+            solver = lx.GMRES(rtol=rtol, atol=0.0, restart=adjoint.restart,
+                              max_steps=cycles)
+            sol = lx.linear_solve(transposed, x_bar, solver, options={"y0": guess},
+                                  throw=False)
+            return sol.value, sol.result == RESULTS.successful
 
         if config.nd == 0:
-            lam = _normal_adjoint(operator, config, frozen, theta, x_bar, guess, rtol,
-                                  config.max_steps)
+            lam, ok = _normal_adjoint(operator, config, frozen, theta, x_bar, guess,
+                                      rtol, maxiter)
         elif config.nd == 1 and not config.coupled:
             def by_cg():
                 return _uncoupled_x_adjoint(
-                    operator, config, frozen, theta, x_bar, guess, rtol,
-                    config.max_steps, lambda v: residual_vjp(v)[0])
+                    operator, config, frozen, theta, x_bar, guess, rtol, maxiter,
+                    lambda v: residual_vjp(v)[0])
 
             if config.tangential_force_control[0]:
-                lam = jax.lax.cond(frozen[3], by_gmres, by_cg)  # gross sliding: GMRES
+                lam, ok = jax.lax.cond(frozen[3], by_gmres, by_cg)  # sliding: GMRES
             else:
-                lam = by_cg()
+                lam, ok = by_cg()
         else:
-            lam = by_gmres()
+            lam, ok = by_gmres()
+        if throw:
+            lam = eqx.error_if(lam, ~ok, RESULTS[RESULTS.adjoint_not_converged])
+        else:
+            lam = jax.tree.map(lambda v: jnp.where(ok, v, jnp.nan), lam)
         theta_bar = residual_vjp(lam)[1]
         theta_bar = jax.tree.map(jnp.negative, theta_bar)
         if theta_extra is not None:
@@ -325,31 +385,30 @@ def _make_attach(config: StepConfig, rtol: float, maxiter: int):
 
 
 def differentiable_step(
-    operator, config: StepConfig, compliance, poisson, friction, h0, history,
-    normal_target, tangential_target, previous_slip, p0, q0, normal_guess=None,
-    adjoint_seed=None, *, adjoint_rtol: float | None = None, adjoint_maxiter: int = 20,
+    solver: AbstractStepSolver, problem: StepProblem, guess: StepGuess,
+    adjoint_seed=None, *, adjoint: ImplicitAdjoint | None = None, throw: bool = True,
 ):
-    """`contact_step` whose pressure, shear, approach, tangential displacement and slip
-    carry exact (implicit) derivatives with respect to every input except the warm
-    starts `p0`, `q0`, `normal_guess` (which do not change the solution).
+    """`solver.solve(problem, guess)` whose pressure, shear, approach, tangential
+    displacement and slip carry exact (implicit) derivatives with respect to every
+    array of `problem` (not the warm start `guess`, which does not change the
+    solution).
 
-    The forward solve is `contact_step` on inputs with their derivatives stopped; the
-    derivatives are attached afterwards by `_make_attach` (see the module docs).
-    `adjoint_seed` (`None`, or the seed returned by the previous step) links the
-    adjoint solves of consecutive steps (warm start, see `_make_attach`).
+    The forward solve runs on inputs with their derivatives stopped; the derivatives
+    are attached afterwards by `_make_attach` (see the module docs). `adjoint_seed`
+    (`None`, or the seed returned by the previous step) links the adjoint solves of
+    consecutive steps (warm start). `adjoint`: an `ImplicitAdjoint` (default one);
+    `throw`: a non-converged adjoint raises (`True`) or gives NaN cotangents.
 
     **Returns:** `(StepResult, seed)`, the seed to pass to the next step.
-    `adjoint_rtol` (default: the step's `rtol`) and `adjoint_maxiter` (GMRES restarts
-    of 40 iterations; the conjugate-gradient adjoints are bounded by
-    `config.max_steps`) bound the adjoint solve.
     """
+    adjoint = ImplicitAdjoint() if adjoint is None else adjoint
     sg = jax.lax.stop_gradient
-    res = contact_step(
-        sg(operator), config, sg(compliance), sg(poisson), sg(friction), sg(h0),
-        sg(history), sg(normal_target), sg(tangential_target), sg(previous_slip),
-        sg(p0), sg(q0), normal_guess=None if normal_guess is None else sg(normal_guess),
-    )
-    dtype = h0.dtype
+    res = solver.solve(sg(problem), sg(guess))
+    config = _Spec(problem.nd, problem.coupled, problem.normal_force_control,
+                   tuple(problem.tangential_force_control), adjoint.precondition)
+    operator = problem.operator
+    compliance, poisson = problem.compliance, problem.poisson
+    dtype = problem.dtype
     kz, kt = _self_compliance(sg(operator), config, sg(compliance), sg(poisson))
     kz, kt = sg(kz), sg(kt)
     contact = res.pressure > 0
@@ -359,15 +418,17 @@ def differentiable_step(
     fixed = jnp.concatenate([x[2][None], x[3]])
     frozen = (contact, res.stick & contact, slip_sign, res.sliding, kz, kt, fixed)
     theta = (jnp.asarray(compliance, dtype), jnp.asarray(poisson, dtype),
-             jnp.asarray(friction, dtype), h0, history, previous_slip,
-             jnp.asarray(normal_target, dtype), jnp.asarray(tangential_target, dtype))
-    rtol = config.rtol if adjoint_rtol is None else adjoint_rtol
-    attach = _make_attach(config, rtol, adjoint_maxiter)
+             jnp.asarray(problem.friction, dtype), problem.gap, problem.history,
+             problem.previous_slip, jnp.asarray(problem.normal_target, dtype),
+             jnp.asarray(problem.tangential_target, dtype))
+    rtol = solver.tolerance(dtype) if adjoint.rtol is None else adjoint.rtol
+    attach = _make_attach(config, adjoint, rtol, throw)
     slip = res.slip if nd > 0 else jnp.zeros_like(res.slip)
     if adjoint_seed is None:
         adjoint_seed = empty_seed(res.pressure, res.shear)
     (p, q, dz, dt), slip, seed = attach(x, slip, frozen, theta, operator, adjoint_seed)
-    result = res._replace(pressure=p, shear=q, approach=dz * kz, delta_t=dt * kt, slip=slip)
+    result = res.replace(pressure=p, shear=q, approach=dz * kz, delta_t=dt * kt,
+                         slip=slip)
     return result, seed
 
 

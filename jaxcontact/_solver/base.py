@@ -1,0 +1,257 @@
+"""The step-solver protocol: one contact step as a problem, a solver and one driver.
+
+Every contact solver of the package (normal, uncoupled tangential, coupled rounds, the
+joint coupled iteration, and the wrappers that compose them) solves one `StepProblem`
+and returns one `StepResult`, through the same four methods, as optimistix's
+`AbstractRootFinder` does:
+
+- `setup(problem)`: what stays fixed during the iteration (spectra, preconditioners,
+  the effective gap); computed once, closed over by the loop body;
+- `init(problem, setup, guess)`: the first iterate, from a `StepGuess`;
+- `step(problem, setup, state)`: one iteration;
+- `terminate(problem, setup, state)`: whether to stop (converged, or given up);
+- `postprocess(problem, setup, state)`: the `StepResult`.
+
+`iterate` is the ONE driver: it owns the `while_loop`, counts the steps and bounds them
+by `solver.step_limit()`, and stamps the result with a `RESULTS` value. A solver never
+runs its own loop; a wrapper (`Fallback`, `LoadByDisplacement`) is a solver whose
+`step` calls another solver's `solve`.
+
+All displacements in a step are `C K traction + history`, with `C` the step's
+compliance (`1/G` elastic, `J(0)` or an effective one in a viscoelastic step) and
+`history` a known field (zero for an elastic body).
+"""
+
+import abc
+from typing import Any
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array, Bool, Float, Int
+
+from .._solution import RESULTS
+
+
+class StepProblem(eqx.Module):
+    """One contact step (elastic, or one viscoelastic step at a known history).
+
+    **Arrays** (units in brackets):
+
+    - `operator`: the `HalfSpace` (unit modulus) of the scene's coupling mode;
+    - `compliance` [1/stress]: `C`; `poisson`, `friction`: scalars;
+    - `gap`: `(nx, ny)` initial gap `h0` [length];
+    - `history`: `(3, nx, ny)` known displacements `(u_x, u_y, u_z)` [length];
+    - `normal_target`: the load `W` [force] or the approach [length];
+    - `tangential_target`: `(nd,)` forces [force] or rigid tangential displacements
+      [length] per direction;
+    - `previous_slip`: `(nd, nx, ny)` slip before the step [length] (zeros for the total
+      slip law).
+
+    **Static**: `nd` (shear components solved: 0, 1 or 2), `coupled` (the coupling
+    blocks are in use), `normal_force_control`, `tangential_force_control` (one bool
+    per direction).
+    """
+
+    operator: Any
+    compliance: Float[Array, ""]
+    poisson: Float[Array, ""]
+    friction: Float[Array, ""]
+    gap: Float[Array, "nx ny"]
+    history: Float[Array, "3 nx ny"]
+    normal_target: Float[Array, ""]
+    tangential_target: Float[Array, " nd"]
+    previous_slip: Float[Array, "nd nx ny"]
+    nd: int = eqx.field(static=True)
+    coupled: bool = eqx.field(static=True)
+    normal_force_control: bool = eqx.field(static=True)
+    tangential_force_control: tuple[bool, ...] = eqx.field(static=True)
+
+    @property
+    def dtype(self):
+        return self.gap.dtype
+
+    def with_tangential(self, target, force_control) -> "StepProblem":
+        """The same step with other tangential targets and controls."""
+        return StepProblem(
+            self.operator, self.compliance, self.poisson, self.friction, self.gap,
+            self.history, self.normal_target, target, self.previous_slip, self.nd,
+            self.coupled, self.normal_force_control, tuple(force_control))
+
+
+class StepGuess(eqx.Module):
+    """Warm start of a step: `pressure` `(nx, ny)` and `shear` `(nd, nx, ny)` [stress],
+    `normal` (the pressure the normal solve starts from; defaults to `pressure`) and
+    `delta_t` `(nd,)` (rigid tangential displacements [length]; zeros by default: the
+    start of `LoadByDisplacement`'s search)."""
+
+    pressure: Float[Array, "nx ny"]
+    shear: Float[Array, "nd nx ny"]
+    normal: Float[Array, "nx ny"]
+    delta_t: Float[Array, " nd"]
+
+    def __init__(self, pressure, shear, normal=None, delta_t=None):
+        self.pressure = pressure
+        self.shear = shear
+        self.normal = pressure if normal is None else normal
+        self.delta_t = (jnp.zeros(shear.shape[:1], shear.dtype) if delta_t is None
+                        else delta_t)
+
+    @classmethod
+    def from_result(cls, result: "StepResult") -> "StepGuess":
+        """Start where an earlier attempt at the same step ended."""
+        return cls(result.pressure, result.shear, delta_t=result.delta_t)
+
+
+class StepResult(eqx.Module):
+    """The solution of one step.
+
+    - `pressure` `(nx, ny)`, `shear` `(nd, nx, ny)` [stress];
+    - `approach` [length], `delta_t` `(nd,)` rigid tangential displacements [length];
+    - `slip` `(nd, nx, ny)`: total slip `u_t - delta_t` after the step [length];
+    - `stick` `(nx, ny)`; `sliding`: contact but no stick cell;
+    - `iterations` (inner iterations, all solvers of a composition summed), `rounds`
+      (normal/tangential rounds, or friction-bound updates of the joint iteration),
+      `fallbacks` (secondary solvers run);
+    - `residual`: the contact residual (relative; loads included); `converged`: the
+      contact conditions hold at the solver's `rtol` (checked with exact
+      displacements); `result`: a `RESULTS` value saying why not, or what was not met.
+    """
+
+    pressure: Float[Array, "nx ny"]
+    shear: Float[Array, "nd nx ny"]
+    approach: Float[Array, ""]
+    delta_t: Float[Array, " nd"]
+    slip: Float[Array, "nd nx ny"]
+    stick: Bool[Array, "nx ny"]
+    sliding: Bool[Array, ""]
+    iterations: Int[Array, ""]
+    rounds: Int[Array, ""]
+    residual: Float[Array, ""]
+    converged: Bool[Array, ""]
+    result: RESULTS
+    fallbacks: Int[Array, ""]
+
+    def replace(self, **changes) -> "StepResult":
+        """A copy with the named fields changed."""
+        names = list(changes)
+        return eqx.tree_at(lambda r: [getattr(r, n) for n in names], self,
+                           [changes[n] for n in names])
+
+
+def make_result(*, pressure, shear, approach, delta_t, slip, stick, sliding, iterations,
+                rounds, residual, converged, result=None) -> StepResult:
+    """A `StepResult`, its `result` `successful` / `max_steps_reached` from
+    `converged` unless given; no fallback used."""
+    if result is None:
+        result = RESULTS.where(converged, RESULTS.successful, RESULTS.max_steps_reached)
+    return StepResult(
+        pressure=pressure, shear=shear, approach=jnp.asarray(approach),
+        delta_t=delta_t, slip=slip, stick=stick, sliding=jnp.asarray(sliding),
+        iterations=jnp.asarray(iterations, jnp.int32),
+        rounds=jnp.asarray(rounds, jnp.int32), residual=jnp.asarray(residual),
+        converged=jnp.asarray(converged), result=result,
+        fallbacks=jnp.zeros((), jnp.int32))
+
+
+class AbstractStepSolver(eqx.Module):
+    """A contact step solver: `setup / init / step / terminate / postprocess`, run by
+    `iterate` (see the module docs). Subclasses are final `eqx.Module`s whose fields
+    are their options (tolerance, bounds, tuned constants with their defaults)."""
+
+    @abc.abstractmethod
+    def setup(self, problem: StepProblem) -> Any:
+        """Loop invariants of the iteration (any Python object; closed over)."""
+
+    @abc.abstractmethod
+    def init(self, problem: StepProblem, setup, guess: StepGuess) -> Any:
+        """The first iterate's state (a pytree)."""
+
+    @abc.abstractmethod
+    def step(self, problem: StepProblem, setup, state) -> Any:
+        """One iteration: the next state."""
+
+    @abc.abstractmethod
+    def terminate(self, problem: StepProblem, setup, state) -> Bool[Array, ""]:
+        """`True` when the iteration should stop (converged or given up)."""
+
+    @abc.abstractmethod
+    def postprocess(self, problem: StepProblem, setup, state) -> StepResult:
+        """The step's result from the final state."""
+
+    @abc.abstractmethod
+    def step_limit(self) -> int:
+        """The most calls of `step` the driver makes."""
+
+    def tolerance(self, dtype) -> float:
+        """The relative tolerance in `dtype`: the solver's `rtol` field, or by default
+        `1e-8` in float64 and `1e-5` in float32."""
+        rtol = getattr(self, "rtol", None)
+        if rtol is not None:
+            return rtol
+        return 1e-8 if jnp.finfo(dtype).bits >= 64 else 1e-5
+
+    def supports(self, problem: StepProblem) -> str | None:
+        """`None` if this solver can solve `problem`, else why not (one sentence)."""
+        return None
+
+    def solve(self, problem: StepProblem, guess: StepGuess) -> StepResult:
+        """Solve one step: `iterate(self, problem, guess)`."""
+        return iterate(self, problem, guess)
+
+
+def iterate(solver: AbstractStepSolver, problem: StepProblem,
+            guess: StepGuess) -> StepResult:
+    """THE driver loop: `init`, then `step` while not `terminate` and fewer than
+    `solver.step_limit()` steps, then `postprocess`.
+
+    A `while_loop` rather than a `scan` or a `cond`: under `vmap` the batched loop runs
+    its body only while some member needs it, and a wrapper whose `init` already
+    converged (e.g. `Fallback`) costs nothing more.
+    """
+    return run(solver, problem, guess)[0]
+
+
+def run(solver: AbstractStepSolver, problem: StepProblem, guess: StepGuess):
+    """`iterate`, also returning the solver's final state (for benchmarks and tests
+    that read a solver's own statistics)."""
+    why = solver.supports(problem)
+    if why is not None:
+        raise ValueError(f"{type(solver).__name__} cannot solve this step: {why}")
+    setup = solver.setup(problem)
+    state = solver.init(problem, setup, guess)
+    limit = solver.step_limit()
+
+    def cond(carry):
+        state, n = carry
+        return (~solver.terminate(problem, setup, state)) & (n < limit)
+
+    def body(carry):
+        state, n = carry
+        return solver.step(problem, setup, state), n + 1
+
+    state, _ = jax.lax.while_loop(cond, body, (state, jnp.array(0)))
+    return solver.postprocess(problem, setup, state), state
+
+
+def step_outcome(problem: StepProblem, pressure, converged, rtol,
+                 failure=RESULTS.max_steps_reached) -> RESULTS:
+    """The `RESULTS` value of a step: `failure` if not `converged`; a converged step
+    under tangential load control whose load exceeds the friction limit `mu W` (beyond
+    the `rtol / 2` of `tangential.gross_sliding`) carries `mu W`, not the load asked
+    for: `tangential_load_above_friction_limit`; else `successful`."""
+    result = RESULTS.where(converged, RESULTS.successful, failure)
+    if problem.nd > 0 and all(problem.tangential_force_control):
+        area = problem.operator.grid.cell_area
+        limit = area * jnp.sum(problem.friction * pressure)
+        load = jnp.sqrt(jnp.sum(problem.tangential_target**2))
+        above = load > limit * (1 + 0.5 * rtol)
+        result = RESULTS.where(
+            converged & above, RESULTS.tangential_load_above_friction_limit, result)
+    return result
+
+
+def safe_div(a, b):
+    """`a / b`, and 0 where `b = 0` (no NaN in either branch's gradient)."""
+    ok = b != 0
+    return jnp.where(ok, a / jnp.where(ok, b, 1), jnp.zeros_like(a))

@@ -1,0 +1,216 @@
+r"""`Rounds`: a step by alternating normal and tangential solves (block Gauss-Seidel).
+
+The normal and tangential problems interact through the coupling blocks of the
+half-space operator (`(1 - 2 nu)` terms): the shear changes the normal displacement and
+the pressure the tangential one. A round is a full Polonsky-Keer normal solve with the
+latest shear, then a full tangential CG solve (`tangential.tangential_cg`) with the
+latest pressure, each warm-started from the previous round, as in the paper and
+Panagiotopoulos' process. The rounds stop when a whole round changes nothing (both
+solvers accept their start with zero iterations). Without coupling one round is exact;
+without a tangential solve (`nd = 0`) it is the normal solve alone.
+
+Under tangential load control with `|F| >= mu W` (to `rtol / 2`,
+`tangential.gross_sliding`) the indenter slides: `q = mu p F/|F|`, reported, never
+iterated on (`RESULTS.tangential_load_above_friction_limit` when `|F| > mu W`).
+"""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+
+from .base import AbstractStepSolver, make_result, step_outcome
+from .normal import inverse_preconditioner, polonsky_keer
+from .precondition import shear_x_preconditioner
+from .tangential import TangentialState, gross_sliding, tangential_cg
+
+
+class _RoundsOperator:
+    """The step's normal and tangential operators and their inner solves."""
+
+    def __init__(self, solver: "Rounds", problem):
+        operator = problem.operator
+        grid = operator.grid
+        self.problem = problem
+        self.area = grid.cell_area
+        dtype = self.dtype = problem.dtype
+        self.nd = nd = problem.nd
+        self.nx, self.ny = grid.shape
+        compliance, poisson = problem.compliance, problem.poisson
+        self.rtol = solver.tolerance(dtype)
+        self.solver = solver
+        self.operator = operator
+        nn_spec = compliance * operator.normal_spectrum(poisson)
+        self.apply_normal = lambda p: operator.inverse(operator.forward(p) * nn_spec)
+        self.precondition = None
+        if solver.precondition:
+            self.precondition = inverse_preconditioner(
+                operator, operator.normal_spectrum(poisson), poisson)
+        self.k_zz = operator.diagonal(nn_spec)  # once, not in every round
+        self.h = problem.gap + problem.history[2]
+        if nd == 0:
+            return
+        xx, xy, yy = operator.tangential_blocks(poisson)
+        self.blocks = (compliance * xx, None if xy is None else compliance * xy,
+                       None if yy is None else compliance * yy)
+        self.self_compliance = operator.diagonal(self.blocks[0])  # A_xx at offset 0
+        self.precondition_t = None
+        if solver.precondition and nd == 1 and not grid.periodic:
+            # The xx spectrum floored by the normal one, on the unpadded grid.
+            self.precondition_t = shear_x_preconditioner(operator, poisson)
+        self.zx, self.zy = operator.coupling_spectra(poisson)
+        self.all_force = all(problem.tangential_force_control)
+
+    def apply_tangential(self, q):
+        return self.operator.apply_tangential(q, self.problem.poisson, blocks=self.blocks)
+
+    def solve_normal(self, h_eff, p_start):
+        s, pr = self.solver, self.problem
+        return polonsky_keer(
+            self.apply_normal, h_eff, pr.normal_target, self.area,
+            load_control=pr.normal_force_control, rtol=self.rtol,
+            max_steps=s.max_steps, resync_every=s.resync_every,
+            self_compliance=self.k_zz, p0=p_start, precondition=self.precondition)
+
+    def uz_from_shear(self, q):
+        pr, op = self.problem, self.operator
+        if not pr.coupled:
+            return jnp.zeros((self.nx, self.ny), self.dtype)
+        hat = 1j * pr.compliance * self.zx * op.forward(q[0])
+        if self.zy is not None and self.nd == 2:
+            hat = hat + 1j * pr.compliance * self.zy * op.forward(q[1])
+        return op.inverse(hat)
+
+    def ut_from_pressure(self, p):
+        pr, op, nd = self.problem, self.operator, self.nd
+        if not pr.coupled:
+            return jnp.zeros((nd, self.nx, self.ny), self.dtype)
+        p_hat = op.forward(p)
+        ux = op.inverse(-1j * pr.compliance * self.zx * p_hat)
+        if nd == 1:
+            return ux[None]
+        uy = (op.inverse(-1j * pr.compliance * self.zy * p_hat) if self.zy is not None
+              else jnp.zeros_like(ux))
+        return jnp.stack([ux, uy])
+
+    def solve_tangential(self, p, q_start):
+        s, pr, area = self.solver, self.problem, self.area
+        bound = pr.friction * p
+        b = self.ut_from_pressure(p) + pr.history[:self.nd] - pr.previous_slip
+        target = pr.tangential_target
+
+        def cg():
+            return tangential_cg(
+                self.apply_tangential, b, bound, pr.tangential_force_control, target,
+                area, self.self_compliance, q0=q_start, rtol=self.rtol,
+                max_steps=s.max_steps, resync_every=s.resync_every,
+                precondition=self.precondition_t)
+
+        if not self.all_force:
+            return cg()
+        # Gross sliding under load control: q = mu p along F (reported, not iterated).
+        limit = area * jnp.sum(bound)
+        f_norm = jnp.sqrt(jnp.sum(target**2))
+
+        def slide():
+            direction = target / jnp.where(f_norm > 0, f_norm, 1)
+            q = bound[None] * direction[:, None, None]
+            w = self.apply_tangential(q) + b
+            contact = bound > 0
+            n = jnp.maximum(jnp.sum(contact), 1)
+            delta = jnp.sum(jnp.where(contact[None], w, 0), axis=(1, 2)) / n
+            return TangentialState(
+                shear=q, displacement=w - b, slip=w - delta[:, None, None], delta=delta,
+                stick=jnp.zeros_like(contact), iterations=jnp.array(0),
+                residual=jnp.zeros((), self.dtype), converged=jnp.array(True),
+                applications=jnp.array(1))
+
+        return jax.lax.cond(gross_sliding(f_norm, limit, self.rtol), slide, cg)
+
+    def round_(self, p, q, iterations, rounds):
+        normal = self.solve_normal(self.h + self.uz_from_shear(q), p)
+        tang = self.solve_tangential(normal.pressure, q)
+        done = (normal.iterations == 0) & (tang.iterations == 0)
+        ok = normal.converged & tang.converged
+        return _RoundsState(
+            pressure=normal.pressure, shear=tang.shear, normal=normal, tangential=tang,
+            done=done & ok, iterations=iterations + normal.iterations + tang.iterations,
+            rounds=rounds + 1, ok=ok)
+
+
+class _RoundsState(eqx.Module):
+    pressure: jax.Array
+    shear: jax.Array
+    normal: object  # normal.NormalState of the last round
+    tangential: object  # tangential.TangentialState of the last round (or None)
+    done: jax.Array  # the last round changed nothing
+    iterations: jax.Array
+    rounds: jax.Array
+    ok: jax.Array  # both solves of the last round converged
+
+
+class Rounds(AbstractStepSolver):
+    """Alternating normal and tangential solves (see the module docs); any step.
+
+    **Arguments:**
+
+    - `rtol`: relative tolerance of both solves; `None`: `1e-8` in float64, `1e-5` in
+      float32.
+    - `max_steps`: iteration bound of each inner CG solve.
+    - `max_rounds`: bound on the rounds of a coupled step.
+    - `resync_every`: recompute displacements exactly this often in the CG solves.
+    - `precondition`: the full-plane inverse preconditioner for the normal CG (and the
+      x tangential CG on non-periodic grids); `False`: diagonal.
+    """
+
+    rtol: float | None = eqx.field(static=True, default=None)
+    max_steps: int = eqx.field(static=True, default=2000)
+    max_rounds: int = eqx.field(static=True, default=100)
+    resync_every: int = eqx.field(static=True, default=25)
+    precondition: bool = eqx.field(static=True, default=True)
+
+    def step_limit(self) -> int:
+        return self.max_rounds - 1  # the first round is `init`'s
+
+    def setup(self, problem) -> _RoundsOperator:
+        return _RoundsOperator(self, problem)
+
+    def init(self, problem, k: _RoundsOperator, guess):
+        if problem.nd == 0:
+            normal = k.solve_normal(k.h, guess.normal)
+            return _RoundsState(
+                pressure=normal.pressure, shear=guess.shear, normal=normal,
+                tangential=None, done=jnp.array(True), iterations=normal.iterations,
+                rounds=jnp.array(1), ok=normal.converged)
+        return k.round_(guess.normal, guess.shear, jnp.array(0), jnp.array(0))
+
+    def terminate(self, problem, k, state):
+        if problem.nd == 0 or not problem.coupled:
+            return jnp.array(True)  # one round is exact
+        return state.done
+
+    def step(self, problem, k: _RoundsOperator, state):
+        if problem.nd == 0:
+            return state  # never run: `terminate` is True
+        return k.round_(state.pressure, state.shear, state.iterations, state.rounds)
+
+    def postprocess(self, problem, k: _RoundsOperator, state):
+        normal, tang = state.normal, state.tangential
+        p = state.pressure
+        if problem.nd == 0:
+            return make_result(
+                pressure=p, shear=state.shear, approach=normal.approach,
+                delta_t=jnp.zeros((0,), k.dtype), slip=jnp.zeros_like(state.shear),
+                stick=(p > 0) & (problem.friction > 0), sliding=jnp.array(False),
+                iterations=state.iterations, rounds=state.rounds,
+                residual=normal.residual, converged=normal.converged)
+        converged = state.ok & state.done if problem.coupled else state.ok
+        contact = p > 0
+        stick = tang.stick
+        sliding = jnp.any(contact) & ~jnp.any(stick)
+        result = step_outcome(problem, p, converged, k.rtol)
+        return make_result(
+            pressure=p, shear=state.shear, approach=normal.approach,
+            delta_t=tang.delta, slip=tang.slip + problem.previous_slip, stick=stick,
+            sliding=sliding, iterations=state.iterations, rounds=state.rounds,
+            residual=jnp.maximum(normal.residual, tang.residual), converged=converged,
+            result=result)
