@@ -3,7 +3,7 @@ step, and whether the joint iteration alone converged (no fallback).
 
 Rigid sphere R = 10 mm, W = 0.15 N, G = 1 MPa on a square grid of side 4 a (a: Hertz
 radius), `jc.solve` with `max_steps = 300` and `max_rounds = 3`: a step that needs more
-than 300 iterations has gone through the fallbacks of `coupled.contact_step` (the
+than 300 iterations has gone through the fallbacks of the default solver (the
 rounds, the load root search), i.e. the joint iteration gave up. Loads:
 
 - one step, F_x = ratio mu W (mu = 0.3), ratio 0.3 / 0.6 / 0.85 / 0.95 / 0.995,

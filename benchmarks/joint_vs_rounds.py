@@ -1,8 +1,8 @@
-"""Joint (p, q) solver against the normal/tangential rounds of `contact_step`.
+"""Joint (p, q) solver against the normal/tangential rounds (`jc.JointPCG`, `jc.Rounds`).
 
 Both solve the same discrete coupled step (normal-tangential coupling "full" unless
 stated, float64, rtol 1e-8 on the same residual definitions) and are called the same
-way, directly at the step level (`coupled.contact_step` and `joint.joint_step`, each
+way, directly at the step level (`solver.solve(jc.StepProblem, jc.StepGuess)`, each
 jitted on its own; time stepping by `lax.scan` with the previous slip carried exactly
 as `jaxcontact/_solve.py` does). Rigid sphere R = 10 mm, W = 0.15 N, G = 1 MPa,
 nu = 0.3, mu = 0.3, square grid of side 4a (a: Hertz radius).
@@ -47,7 +47,7 @@ Notes on the design of `jaxcontact/_solver/joint.py` (what was tried):
   (the only failures are the cases the rounds cannot solve either: F = 0.95 mu W and
   mu = 0.1 with F = 0.5 mu W, where no stick cell survives; solved since db55c27,
   whose all-slip load multiplier and load fix `joint_robustness.py` measures);
-- wired in as the default of `contact_step` with the rounds as fallback; the one
+- wired in as the default of the step solver with the rounds as fallback; the one
   failure found by tests/test_joint.py (displacement control past gross sliding with
   the total slip law: the stick set cycles) now gives up after 150 iterations without
   progress and falls back;
@@ -92,8 +92,6 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 import jaxcontact as jc  # noqa: E402
-from jaxcontact._solver.coupled import StepConfig, contact_step  # noqa: E402
-from jaxcontact._solver.joint import joint_solve  # noqa: E402
 from jaxcontact._solver.normal import hertzian_guess  # noqa: E402
 
 
@@ -116,14 +114,27 @@ class CountingHalfSpace(jc.HalfSpace):
         return super().inverse(spec)
 
 
-def rounds_solve(*args, **kwargs):
-    return contact_step(*args, **kwargs), None
+ROUNDS = jc.Rounds(rtol=1e-8)
+JOINT = jc.JointPCG(rtol=1e-8)
+# What `method="rounds"` / `"joint"` of `jc.solve` were before the solver objects.
+SOLVE_WITH = {
+    "joint": None,
+    "rounds": jc.Fallback(ROUNDS, jc.LoadByDisplacement(ROUNDS)),
+}
+
+
+def rounds_solve(problem, guess):
+    return ROUNDS.solve(problem, guess), None
+
+
+def joint_solve(problem, guess):
+    return JOINT.statistics(problem, guess)
 
 
 def make_runner(solver, op, cfg, h0, nu, mu):
     """A jitted time stepper (`lax.scan`) over `(W_k, T_k)`, as `_solve.py` does it."""
     grid = op.grid
-    nd = cfg.nd
+    nd = cfg["nd"]
     nx, ny = grid.shape
     area = grid.cell_area
     history = jnp.zeros((3, nx, ny))
@@ -137,11 +148,14 @@ def make_runner(solver, op, cfg, h0, nu, mu):
         p_start = jnp.where(p_prev > 0, p_start, 0)
         q_start = jnp.where(have_two, 2 * q_prev - q_prev2, q_prev)
         guess = p_start
-        if cfg.normal_force_control:
+        if cfg["normal_force_control"]:
             fresh = hertzian_guess(h0, w_target, e_star, area)
             guess = jnp.where(jnp.sum(p_start) > 0, p_start, fresh)
-        res, stats = solver(op, cfg, 1 / G, nu, mu, h0, history, w_target, t_target,
-                            s_prev, p_start, q_start, normal_guess=guess)
+        problem = jc.StepProblem(
+            op, jnp.asarray(1 / G), jnp.asarray(nu), jnp.asarray(mu), h0, history,
+            w_target, t_target, s_prev, cfg["nd"], True, cfg["normal_force_control"],
+            cfg["tangential_force_control"])
+        res, stats = solver(problem, jc.StepGuess(p_start, q_start, normal=guess))
         return (res.pressure, res.shear, res.slip, p_prev, q_prev), (res, stats)
 
     @jax.jit
@@ -170,9 +184,8 @@ def case(name, n, width, coupling, tangential_force, normal_force, w_targets, t_
          *, nu=NU, mu=MU, repeats=3):
     grid = jc.Grid((n, n), width * float(jc.Hertz(R, W, G, nu).contact_radius))
     nd = 2 if coupling == "full" else 1
-    cfg = StepConfig(nd=nd, coupled=True, normal_force_control=normal_force,
-                     tangential_force_control=tangential_force[:nd], rtol=1e-8,
-                     max_steps=2000, max_rounds=100, resync_every=25)
+    cfg = dict(nd=nd, normal_force_control=normal_force,
+               tangential_force_control=tuple(tangential_force[:nd]))
     h0 = jc.Sphere(R).gap(grid)
     w_targets = jnp.asarray(w_targets, float)
     t_targets = jnp.asarray(t_targets, float)[:, :nd]
@@ -252,8 +265,8 @@ def speed(sizes=(128, 256), increments=90, repeats=5, methods=("joint", "rounds"
         fns = {
             "normal": lambda: jc.solve_normal(grid, jc.Sphere(R), mat, force=W,
                                               operator=op_n).pressure,
-            "joint": lambda: jc.solve(scene, operator=op_f, method="joint"),
-            "rounds": lambda: jc.solve(scene, operator=op_f, method="rounds"),
+            "joint": lambda: jc.solve(scene, operator=op_f, solver=SOLVE_WITH["joint"]),
+            "rounds": lambda: jc.solve(scene, operator=op_f, solver=SOLVE_WITH["rounds"]),
         }
         fns = {k: f for k, f in fns.items() if k == "normal" or k in methods}
         compile_s, sols = {}, {}
@@ -295,12 +308,12 @@ def speed(sizes=(128, 256), increments=90, repeats=5, methods=("joint", "rounds"
     rows = {}
     sols = {}
     for method in methods:
-        first, sols[method] = _timed_once(lambda: jc.solve(scene, operator=op_f, method=method))
+        first, sols[method] = _timed_once(lambda: jc.solve(scene, operator=op_f, solver=SOLVE_WITH[method]))
         rows[method] = dict(first_call_s=first, seconds=[])
     for _ in range(max(1, repeats // 2)):
         for method in methods:
             rows[method]["seconds"].append(
-                _timed_once(lambda: jc.solve(scene, operator=op_f, method=method))[0])
+                _timed_once(lambda: jc.solve(scene, operator=op_f, solver=SOLVE_WITH[method]))[0])
     for method, sol in sols.items():
         ratio = np.asarray(sol.stick_ratio)
         rows[method].update(

@@ -341,7 +341,7 @@ def _run_scene(args, dtype) -> int:
     )
     start = time.perf_counter()
     try:
-        sol = jc.solve(scene, progress=nt > 1, **options)
+        sol = jc.solve(scene, progress=nt > 1, throw=False, **options)
         sol = jax.tree_util.tree_map(np.asarray, sol)
     except (ValueError, TypeError) as exc:
         raise InputError(f"{stem}: {exc}") from exc

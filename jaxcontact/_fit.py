@@ -174,7 +174,8 @@ class _SceneModel:
     def __call__(self, material, ctx):
         scene, operator = ctx
         scene = eqx.tree_at(lambda s: s.material, scene, material)
-        sol = solve(scene, operator=operator, **dict(self.options))
+        # A fit weighs a non-converged model curve through its flags, not an exception.
+        sol = solve(scene, operator=operator, **{"throw": False, **dict(self.options)})
         curve = sol.normal_force if self.kind == "force" else sol.approach
         return curve, sol.converged
 

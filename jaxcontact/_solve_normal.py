@@ -13,9 +13,8 @@ from ._material.base import AbstractMaterial
 from ._loading import Displacement, Force
 from ._operator import HalfSpace
 from ._solution import edge_ring
-from ._solver.normal import (
-    PolonskyKeer, hertzian_guess, inverse_preconditioner, polonsky_keer,
-)
+from ._solver.base import StepGuess, StepProblem
+from ._solver.normal import PolonskyKeer, hertzian_guess
 
 
 class NormalSolution(eqx.Module):
@@ -56,34 +55,17 @@ class NormalSolution(eqx.Module):
 @eqx.filter_jit
 def _solve(operator, h, compliance, poisson, target, load_control, solver):
     grid = operator.grid
-    spectrum = compliance * operator.normal_spectrum(poisson)
-
-    def apply_fn(p):
-        return operator.inverse(operator.forward(p) * spectrum)
-
-    precondition = None
-    if solver.precondition:
-        precondition = inverse_preconditioner(
-            operator, operator.normal_spectrum(poisson), poisson)
-
-    p0 = None
+    nx, ny = grid.shape
+    dtype = h.dtype
+    problem = StepProblem(
+        operator, compliance, poisson, jnp.zeros((), dtype), h,
+        jnp.zeros((3, nx, ny), dtype), target, jnp.zeros((0,), dtype),
+        jnp.zeros((0, nx, ny), dtype), 0, False, load_control, ())
+    p0 = jnp.zeros_like(h)  # displacement control: the local interference
     if load_control:
         effective_modulus = 2 / (compliance * (1 - poisson))
         p0 = hertzian_guess(h, target, effective_modulus, grid.cell_area)
-
-    state = polonsky_keer(
-        apply_fn,
-        h,
-        target,
-        grid.cell_area,
-        load_control=load_control,
-        rtol=solver.tolerance(h.dtype),
-        max_steps=solver.max_steps,
-        resync_every=solver.resync_every,
-        self_compliance=operator.diagonal(spectrum),
-        p0=p0,
-        precondition=precondition,
-    )
+    state = solver.solve_state(problem, StepGuess(p0, jnp.zeros((0, nx, ny), dtype)))
     return NormalSolution(
         pressure=state.pressure,
         gap=state.gap,

@@ -171,6 +171,9 @@ def sweep(scene: Scene, /, *, solve_options: dict | None = None, devices=None,
     if not isinstance(scene, Scene):
         raise TypeError(f"scene must be a jc.Scene, got {scene!r}")
     options = dict(solve_options or {})
+    # A batch reports its failures per member (`converged`, `result`) rather than
+    # raising for the whole batch; `throw=True` in solve_options raises.
+    options.setdefault("throw", False)
     if "operator" in options:
         raise ValueError("jc.sweep builds the operator once itself: leave 'operator' out "
                          "of solve_options")

@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 
 import jaxcontact as jc
-import jaxcontact._solve_normal as solve_normal_module
 
 
 R, W, G, NU = 10e-3, 0.15, 1e6, 0.3
@@ -141,13 +140,13 @@ def test_rough_surface_many_islands():
 @pytest.mark.filterwarnings("ignore::jaxcontact.EdgeContactWarning")
 def test_second_call_does_not_recompile(monkeypatch):
     traces = []
-    original = solve_normal_module.polonsky_keer
+    original = jc.PolonskyKeer.solve_state
 
     def counting(*args, **kwargs):
         traces.append(1)
         return original(*args, **kwargs)
 
-    monkeypatch.setattr(solve_normal_module, "polonsky_keer", counting)
+    monkeypatch.setattr(jc.PolonskyKeer, "solve_state", counting)
     grid = jc.Grid((24, 20), (1e-3, 0.8e-3))
     op = jc.HalfSpace(grid)
     jc.solve_normal(grid, jc.Sphere(1e-2), jc.Elastic(1e6, 0.3), force=0.1, operator=op)

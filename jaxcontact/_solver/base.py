@@ -71,6 +71,14 @@ class StepProblem(eqx.Module):
     def dtype(self):
         return self.gap.dtype
 
+    def normal_part(self) -> "StepProblem":
+        """The frictionless step of the same gap, history and normal target."""
+        nx, ny = self.gap.shape
+        return StepProblem(
+            self.operator, self.compliance, self.poisson, self.friction, self.gap,
+            self.history, self.normal_target, jnp.zeros((0,), self.dtype),
+            jnp.zeros((0, nx, ny), self.dtype), 0, False, self.normal_force_control, ())
+
     def with_tangential(self, target, force_control) -> "StepProblem":
         """The same step with other tangential targets and controls."""
         return StepProblem(
@@ -212,14 +220,23 @@ def iterate(solver: AbstractStepSolver, problem: StepProblem,
     return run(solver, problem, guess)[0]
 
 
-def run(solver: AbstractStepSolver, problem: StepProblem, guess: StepGuess):
+def run(solver: AbstractStepSolver, problem: StepProblem, guess: StepGuess, *,
+        setup=None):
     """`iterate`, also returning the solver's final state (for benchmarks and tests
-    that read a solver's own statistics)."""
+    that read a solver's own statistics); `setup`: the loop invariants if already
+    built."""
     why = solver.supports(problem)
     if why is not None:
         raise ValueError(f"{type(solver).__name__} cannot solve this step: {why}")
-    setup = solver.setup(problem)
-    state = solver.init(problem, setup, guess)
+    if setup is None:
+        setup = solver.setup(problem)
+    state = loop(solver, problem, setup, solver.init(problem, setup, guess))
+    return solver.postprocess(problem, setup, state), state
+
+
+def loop(solver: AbstractStepSolver, problem, setup, state):
+    """The `while_loop` of the driver: `step` while not `terminate` and fewer than
+    `solver.step_limit()` steps; the final state."""
     limit = solver.step_limit()
 
     def cond(carry):
@@ -230,8 +247,7 @@ def run(solver: AbstractStepSolver, problem: StepProblem, guess: StepGuess):
         state, n = carry
         return solver.step(problem, setup, state), n + 1
 
-    state, _ = jax.lax.while_loop(cond, body, (state, jnp.array(0)))
-    return solver.postprocess(problem, setup, state), state
+    return jax.lax.while_loop(cond, body, (state, jnp.array(0)))[0]
 
 
 def step_outcome(problem: StepProblem, pressure, converged, rtol,

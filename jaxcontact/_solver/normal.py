@@ -30,8 +30,8 @@ Differences from the textbook algorithm (Polonsky & Keer 1999, Wear 231, 206-219
   load control, made mean-free on it. The operator restricted to a contact disc of
   `m` cells across has a condition number growing like `m` (its symbol is `1 /
   |k|`); `M` removes that growth up to edge effects. Measured with `M` on the padded
-  grid (256^2 Hertz, float64, rtol 1e-8): 31 -> 7 iterations, 41 -> 20 FFT pairs; a
-  150-step creep history: 4694 -> 897 iterations. `inverse_preconditioner` builds
+  grid: 4-5x fewer iterations for half the FFT pairs (`benchmarks/notes/solvers.md`).
+  `inverse_preconditioner` builds
   `M`: `1 / spectrum` on the padded grid (one more padded pair per iteration), or, as
   the solvers use it, on the UNPADDED grid with the wrapped spectrum raised to
   Boussinesq's continuous symbol (a quarter of the transform, no more iterations).
@@ -48,57 +48,9 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
+from .base import AbstractStepSolver, StepGuess, loop, make_result
+from .base import safe_div as _safe_div
 from .precondition import continuum_symbols, padded_inverse, unpadded_inverse
-
-
-class PolonskyKeer(eqx.Module):
-    """Polonsky-Keer conjugate gradient solver for the normal contact problem.
-
-    **Arguments:**
-
-    - `rtol`: relative tolerance on the contact conditions (see module docs). `None`
-      (default) picks `1e-8` in float64 and `1e-5` in float32 (whose round-off floor
-      is about `5e-7`).
-    - `max_steps`: maximum number of CG iterations (default 2000).
-    - `resync_every`: recompute the displacement exactly every this many iterations
-      (default 25).
-
-    - `precondition`: build the search directions from the full-plane inverse of the
-      operator (default `True`: about 4x fewer iterations for half the FFT pairs;
-      see the module docs). `False` is the textbook algorithm.
-
-    ??? cite "References"
-
-        Polonsky, I. A. & Keer, L. M. (1999). A numerical method for solving rough
-        contact problems based on the multi-level multi-summation and conjugate gradient
-        techniques. Wear 231, 206-219.
-
-        Vollebregt, E. A. H. (2014). A new solver for the elastic normal contact problem
-        using conjugate gradients, deflation, and an FFT-based preconditioner. J.
-        Comput. Phys. 257, 333-351.
-    """
-
-    rtol: float | None = eqx.field(static=True, default=None)
-    max_steps: int = eqx.field(static=True, default=2000)
-    resync_every: int = eqx.field(static=True, default=25)
-    precondition: bool = eqx.field(static=True, default=True)
-
-    def __check_init__(self):
-        if self.rtol is not None and not (0 < self.rtol < 1):
-            raise ValueError(f"rtol must be in (0, 1), got {self.rtol!r}")
-        if not (isinstance(self.max_steps, int) and self.max_steps >= 1):
-            raise ValueError(f"max_steps must be a positive integer, got {self.max_steps!r}")
-        if not (isinstance(self.resync_every, int) and self.resync_every >= 1):
-            raise ValueError(
-                f"resync_every must be a positive integer, got {self.resync_every!r}"
-            )
-        if not isinstance(self.precondition, bool):
-            raise TypeError(f"precondition must be a bool, got {self.precondition!r}")
-
-    def tolerance(self, dtype) -> float:
-        if self.rtol is not None:
-            return self.rtol
-        return 1e-8 if jnp.finfo(dtype).bits >= 64 else 1e-5
 
 
 def inverse_preconditioner(operator, spectrum, poisson=None):
@@ -110,10 +62,8 @@ def inverse_preconditioner(operator, spectrum, poisson=None):
     must be the operator's `normal_spectrum(poisson)` (unit compliance), and on a
     non-periodic grid the inverse runs on the UNPADDED grid
     (`precondition.unpadded_inverse`: the wrapped spectrum raised to Boussinesq's
-    continuous symbol where that is larger), a quarter of the transform. Measured
-    (Hertz under load control, rtol 1e-8, uniform start, float64, 2-core CPU): 105^2
-    over 2.3 a 16 -> 13 iterations, 256^2 over 4 a 30 -> 25, 512^2 over 4 a 36 -> 29,
-    and each iteration's preconditioner four times cheaper.
+    continuous symbol where that is larger), a quarter of the transform, with fewer
+    iterations than the padded inverse (`benchmarks/notes/solvers.md`).
     """
     if poisson is not None and not operator.grid.periodic:
         continuum = continuum_symbols(operator.grid, poisson, 0)[0]
@@ -153,7 +103,7 @@ def hertzian_guess(h, load, effective_modulus, cell_area, steps: int = 60):
 
 
 class NormalState(NamedTuple):
-    """Raw result of `polonsky_keer` (all arrays)."""
+    """Raw result of a normal solve (all arrays)."""
 
     pressure: Float[Array, "nx ny"]
     displacement: Float[Array, "nx ny"]  # C K p
@@ -165,11 +115,6 @@ class NormalState(NamedTuple):
     # Operator applications (padded FFT convolutions) used; the preconditioner's
     # transforms (an unpadded pair per iteration when given `poisson`) are not counted.
     applications: Int[Array, ""]
-
-
-def _safe_div(a, b):
-    ok = b != 0
-    return jnp.where(ok, a / jnp.where(ok, b, 1), 0)
 
 
 def _evaluate(h, u, p, target, load_control):
@@ -195,94 +140,161 @@ def _evaluate(h, u, p, target, load_control):
     return g, delta, residual
 
 
-def polonsky_keer(
-    apply_fn,
-    h: Float[Array, "nx ny"],
-    target,
-    cell_area,
-    *,
-    load_control: bool,
-    rtol: float,
-    max_steps: int,
-    resync_every: int = 25,
-    self_compliance,
-    p0: Float[Array, "nx ny"] | None = None,
-    precondition=None,
-) -> NormalState:
-    """Solve the normal contact problem (see module docs).
+class NormalOperator:
+    """What a normal solve holds fixed: `apply_fn` (`p -> C K p`, pressure [stress] to
+    displacement [length]), the effective gap `h` [length], the `target` (load [force]
+    or approach [length]), `cell_area`, `load_control`, the `self_compliance` (the
+    diagonal of `apply_fn`) and the preconditioner (`None` or `g -> M g`)."""
+
+    def __init__(self, apply_fn, h, target, cell_area, *, load_control, rtol,
+                 self_compliance, precondition=None):
+        self.apply_fn = apply_fn
+        self.h = h
+        self.target = jnp.asarray(target, h.dtype)
+        self.cell_area = cell_area
+        self.load_control = load_control
+        self.rtol = rtol
+        self.k00 = jnp.asarray(self_compliance, h.dtype)
+        self.precondition = precondition
+
+    @classmethod
+    def of(cls, solver: "PolonskyKeer", problem) -> "NormalOperator":
+        """From a `StepProblem`: `C K_zz`, `h = gap + history_z`, its normal target."""
+        operator = problem.operator
+        spectrum = problem.compliance * operator.normal_spectrum(problem.poisson)
+        precondition = None
+        if solver.precondition:
+            precondition = inverse_preconditioner(
+                operator, operator.normal_spectrum(problem.poisson), problem.poisson)
+        return cls(
+            lambda p: operator.inverse(operator.forward(p) * spectrum),
+            problem.gap + problem.history[2], problem.normal_target,
+            operator.grid.cell_area, load_control=problem.normal_force_control,
+            rtol=solver.tolerance(problem.dtype),
+            self_compliance=operator.diagonal(spectrum), precondition=precondition)
+
+    def with_gap(self, h) -> "NormalOperator":
+        """The same operator for another effective gap (a coupled round's)."""
+        return NormalOperator(
+            self.apply_fn, h, self.target, self.cell_area, load_control=self.load_control,
+            rtol=self.rtol, self_compliance=self.k00, precondition=self.precondition)
+
+    def rescale(self, p):
+        total = self.cell_area * jnp.sum(p)
+        return jnp.where(total > 0, self.target / jnp.where(total > 0, total, 1), 0.0)
+
+    def evaluate(self, u, p):
+        return _evaluate(self.h, u, p, self.target, self.load_control)
+
+
+class _NormalCGState(eqx.Module):
+    p: Float[Array, "nx ny"]
+    u: Float[Array, "nx ny"]
+    g: Float[Array, "nx ny"]
+    t: Float[Array, "nx ny"]  # search direction
+    g_norm_old: Float[Array, ""]
+    restart: Bool[Array, ""]
+    it: Int[Array, ""]
+    residual: Float[Array, ""]
+    applications: Int[Array, ""]
+    p_start: Float[Array, "nx ny"]  # the pressure to restart from if all of it clips
+
+
+class PolonskyKeer(AbstractStepSolver):
+    """Polonsky-Keer conjugate gradient solver for the normal contact problem (see the
+    module docs). Solves frictionless steps (`nd = 0`); `jc.Rounds` uses it for the
+    normal half of every round.
 
     **Arguments:**
 
-    - `apply_fn`: `p -> C K p`, pressure [stress] to normal displacement [length].
-    - `h`: effective initial gap [length], `(nx, ny)`.
-    - `target`: the load `W` [force] (`load_control=True`) or approach `delta` [length].
-    - `cell_area`: area of one cell [length^2].
-    - `rtol`, `max_steps`, `resync_every`: see `PolonskyKeer`.
-    - `p0`: initial pressure guess (optional; it is rescaled to the load under load
-      control).
-    - `self_compliance`: the diagonal entry of `apply_fn` [length/stress]
-      (`HalfSpace.diagonal` of its spectrum).
-    - `precondition`: `None` (plain CG) or `g -> M g`, an approximate inverse of
-      `apply_fn` (symmetric positive definite; its scale does not matter), e.g.
-      `inverse_preconditioner`.
+    - `rtol`: relative tolerance on the contact conditions (see module docs). `None`
+      (default) picks `1e-8` in float64 and `1e-5` in float32 (whose round-off floor
+      is about `5e-7`).
+    - `max_steps`: maximum number of CG iterations (default 2000).
+    - `resync_every`: recompute the displacement exactly every this many iterations
+      (default 25).
+    - `precondition`: build the search directions from the full-plane inverse of the
+      operator (default `True`: about 4x fewer iterations for half the FFT pairs;
+      see the module docs). `False` is the textbook algorithm.
+
+    ??? cite "References"
+
+        Polonsky, I. A. & Keer, L. M. (1999). A numerical method for solving rough
+        contact problems based on the multi-level multi-summation and conjugate gradient
+        techniques. Wear 231, 206-219.
+
+        Vollebregt, E. A. H. (2014). A new solver for the elastic normal contact problem
+        using conjugate gradients, deflation, and an FFT-based preconditioner. J.
+        Comput. Phys. 257, 333-351.
     """
-    dtype = h.dtype
-    target = jnp.asarray(target, dtype)
 
-    # ---- Initial set-up -----------------------------------------------------------
-    # Local compliance: the displacement of a cell under its own unit pressure. It
-    # gives a pressure that closes an interference locally: the start of a
-    # displacement-controlled solve from p = 0, and the step for re-entering cells
-    # (always when preconditioned; otherwise when the CG step vanishes, e.g. a few
-    # symmetric cells with equal gaps).
-    k00 = jnp.asarray(self_compliance, dtype)
-    if load_control:
-        p0 = jnp.full_like(h, 1.0) if p0 is None else p0
-    else:
-        local = jnp.maximum(target - h, 0) / k00
-        p0 = local if p0 is None else jnp.where(jnp.sum(p0) > 0, p0, local)
-    p0 = jnp.maximum(jnp.asarray(p0, dtype), 0)
+    rtol: float | None = eqx.field(static=True, default=None)
+    max_steps: int = eqx.field(static=True, default=2000)
+    resync_every: int = eqx.field(static=True, default=25)
+    precondition: bool = eqx.field(static=True, default=True)
 
-    def rescale(p):
-        total = cell_area * jnp.sum(p)
-        return jnp.where(total > 0, target / jnp.where(total > 0, total, 1), 0.0)
+    def __check_init__(self):
+        if self.rtol is not None and not (0 < self.rtol < 1):
+            raise ValueError(f"rtol must be in (0, 1), got {self.rtol!r}")
+        if not (isinstance(self.max_steps, int) and self.max_steps >= 1):
+            raise ValueError(f"max_steps must be a positive integer, got {self.max_steps!r}")
+        if not (isinstance(self.resync_every, int) and self.resync_every >= 1):
+            raise ValueError(
+                f"resync_every must be a positive integer, got {self.resync_every!r}"
+            )
+        if not isinstance(self.precondition, bool):
+            raise TypeError(f"precondition must be a bool, got {self.precondition!r}")
 
-    if load_control:
-        p0 = jnp.where(jnp.sum(p0) > 0, p0, jnp.ones_like(p0))
-        p0 = p0 * rescale(p0)
-    u0 = apply_fn(p0)
-    g0, _, res0 = _evaluate(h, u0, p0, target, load_control)
+    def supports(self, problem):
+        if problem.nd != 0:
+            return ("it solves frictionless (normal) steps only; use jc.Rounds() or "
+                    "jc.JointPCG() for a step with shear")
+        return None
 
-    init = dict(
-        p=p0,
-        u=u0,
-        g=g0,
-        t=jnp.zeros_like(h),
-        g_norm_old=jnp.ones((), dtype),
-        restart=jnp.array(True),
-        it=jnp.array(0),
-        residual=res0,
-        applications=jnp.array(1),
-    )
+    def step_limit(self) -> int:
+        return self.max_steps
 
-    # ---- Main loop ------------------------------------------------------------------
-    def cond(s):
-        return (s["residual"] > rtol) & (s["it"] < max_steps)
+    def setup(self, problem) -> NormalOperator:
+        return NormalOperator.of(self, problem)
 
-    def body(s):
-        p, u, g = s["p"], s["u"], s["g"]
+    def init(self, problem, k: NormalOperator, guess) -> _NormalCGState:
+        h = k.h
+        # Local compliance: the displacement of a cell under its own unit pressure. It
+        # gives a pressure that closes an interference locally: the start of a
+        # displacement-controlled solve from p = 0, and the step for re-entering cells.
+        p0 = jnp.asarray(guess.normal, h.dtype)
+        if not k.load_control:
+            local = jnp.maximum(k.target - h, 0) / k.k00
+            p0 = jnp.where(jnp.sum(p0) > 0, p0, local)
+        p0 = jnp.maximum(p0, 0)
+        if k.load_control:
+            p0 = jnp.where(jnp.sum(p0) > 0, p0, jnp.ones_like(p0))
+            p0 = p0 * k.rescale(p0)
+        u0 = k.apply_fn(p0)
+        g0, _, res0 = k.evaluate(u0, p0)
+        return _NormalCGState(
+            p=p0, u=u0, g=g0, t=jnp.zeros_like(h), g_norm_old=jnp.ones((), h.dtype),
+            restart=jnp.array(True), it=jnp.array(0), residual=res0,
+            applications=jnp.array(1), p_start=p0)
+
+    def terminate(self, problem, k, s):
+        return s.residual <= k.rtol
+
+    def step(self, problem, k: NormalOperator, s: _NormalCGState) -> _NormalCGState:
+        apply_fn, load_control, rtol = k.apply_fn, k.load_control, k.rtol
+        p, u, g = s.p, s.u, s.g
         contact = p > 0
         n_contact = jnp.sum(contact)
         gc = jnp.where(contact, g, 0)
-        if precondition is None:
+        if k.precondition is None:
             z = gc
         else:
-            z = jnp.where(contact, precondition(gc), 0)
+            z = jnp.where(contact, k.precondition(gc), 0)
             if load_control:  # keep the load: a mean-free direction on the contact
                 z = jnp.where(contact, z - _safe_div(jnp.sum(z), n_contact), 0)
         g_norm = jnp.sum(gc * z)  # (g, M g); (g, g) without preconditioner
-        beta = jnp.where(s["restart"], 0.0, _safe_div(g_norm, s["g_norm_old"]))
-        t = jnp.where(contact, z + beta * s["t"], 0)
+        beta = jnp.where(s.restart, 0.0, _safe_div(g_norm, s.g_norm_old))
+        t = jnp.where(contact, z + beta * s.t, 0)
         r_raw = apply_fn(t)
         r = r_raw
         if load_control:
@@ -294,55 +306,75 @@ def polonsky_keer(
         p_new = jnp.maximum(p_step, 0)
         # Re-entry: cells out of contact that penetrate get pressure.
         overlap = (~contact) & (g < 0)
-        if precondition is None:
-            tau_overlap = jnp.where(tau > 0, tau, 1 / k00)
-        else:  # tau is in units of the preconditioned direction: use the local compliance
-            tau_overlap = 1 / k00
+        if k.precondition is None:
+            tau_overlap = jnp.where(tau > 0, tau, 1 / k.k00)
+        else:  # tau is in units of the preconditioned direction: the local compliance
+            tau_overlap = 1 / k.k00
         p_new = jnp.where(overlap, p_new - tau_overlap * g, p_new)
         changed = jnp.any(clipped & contact) | jnp.any(overlap)
         if load_control:
-            p_new = jnp.where(jnp.sum(p_new) > 0, p_new, p0)
-            scale = rescale(p_new)
+            p_new = jnp.where(jnp.sum(p_new) > 0, p_new, s.p_start)
+            scale = k.rescale(p_new)
             p_new = p_new * scale
             u_new = u_new * scale
-        it = s["it"] + 1
-        need_exact = changed | (it % resync_every == 0)
+        it = s.it + 1
+        need_exact = changed | (it % self.resync_every == 0)
         u_new = jax.lax.cond(need_exact, lambda: apply_fn(p_new), lambda: u_new)
-        g_new, _, res = _evaluate(h, u_new, p_new, target, load_control)
+        g_new, _, res = k.evaluate(u_new, p_new)
 
         # Certify convergence with an exact displacement.
         def exact():
             u_e = apply_fn(p_new)
-            g_e, _, res_e = _evaluate(h, u_e, p_new, target, load_control)
+            g_e, _, res_e = k.evaluate(u_e, p_new)
             return u_e, g_e, res_e
 
         certify = (~need_exact) & (res <= rtol)
         u_new, g_new, res = jax.lax.cond(certify, exact, lambda: (u_new, g_new, res))
-        applications = s["applications"] + 1 + need_exact + certify
-        return dict(
-            p=p_new,
-            u=u_new,
-            g=g_new,
-            t=t,
-            g_norm_old=g_norm,
+        applications = s.applications + 1 + need_exact + certify
+        return _NormalCGState(
+            p=p_new, u=u_new, g=g_new, t=t, g_norm_old=g_norm,
             # A failed certification changes the residual discontinuously: restart.
             restart=jnp.any(overlap) | (certify & (res > rtol)),
-            it=it,
-            residual=res,
-            applications=applications,
-        )
+            it=it, residual=res, applications=applications, p_start=s.p_start)
 
-    s = jax.lax.while_loop(cond, body, init)
+    def normal_state(self, k: NormalOperator, s: _NormalCGState) -> NormalState:
+        """The final state as a `NormalState` (gap, approach, residual re-evaluated)."""
+        g, delta, residual = k.evaluate(s.u, s.p)
+        return NormalState(
+            pressure=s.p, displacement=s.u, gap=g, approach=delta, iterations=s.it,
+            residual=residual, converged=residual <= k.rtol,
+            applications=s.applications)
 
-    # ---- Finish up ----------------------------------------------------------------
-    g, delta, residual = _evaluate(h, s["u"], s["p"], target, load_control)
-    return NormalState(
-        pressure=s["p"],
-        displacement=s["u"],
-        gap=g,
-        approach=delta,
-        iterations=s["it"],
-        residual=residual,
-        converged=residual <= rtol,
-        applications=s["applications"],
-    )
+    def postprocess(self, problem, k: NormalOperator, s: _NormalCGState):
+        st = self.normal_state(k, s)
+        empty = jnp.zeros((0,) + st.pressure.shape, st.pressure.dtype)
+        return make_result(
+            pressure=st.pressure, shear=empty, approach=st.approach,
+            delta_t=jnp.zeros((0,), st.pressure.dtype), slip=empty,
+            stick=(st.pressure > 0) & (problem.friction > 0), sliding=False,
+            iterations=st.iterations, rounds=1, residual=st.residual,
+            converged=st.converged)
+
+    def solve_state(self, problem, guess, setup: NormalOperator | None = None):
+        """Solve and return the raw `NormalState` (with the gap and displacement), on
+        `setup` if given (a `NormalOperator`, e.g. one gap of a coupled round)."""
+        k = self.setup(problem) if setup is None else setup
+        state = loop(self, problem, k, self.init(problem, k, guess))
+        return self.normal_state(k, state)
+
+
+def polonsky_keer(apply_fn, h, target, cell_area, *, load_control: bool, rtol: float,
+                  max_steps: int, resync_every: int = 25, self_compliance, p0=None,
+                  precondition=None) -> NormalState:
+    """`PolonskyKeer` on a raw operator: `apply_fn` (`p -> C K p`), the effective gap
+    `h` [length], `target` (load [force] or approach [length]), the `cell_area`, the
+    `self_compliance` (diagonal of `apply_fn`), an optional start `p0` and
+    preconditioner (`g -> M g`). For tests and benchmarks of the preconditioners."""
+    solver = PolonskyKeer(rtol=rtol, max_steps=max_steps, resync_every=resync_every,
+                          precondition=precondition is not None)
+    k = NormalOperator(apply_fn, h, target, cell_area, load_control=load_control,
+                       rtol=rtol, self_compliance=self_compliance,
+                       precondition=precondition)
+    p0 = jnp.zeros_like(h) if p0 is None else p0
+    guess = StepGuess(p0, jnp.zeros((0,) + h.shape, h.dtype))
+    return solver.normal_state(k, loop(solver, None, k, solver.init(None, k, guess)))

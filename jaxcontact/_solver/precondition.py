@@ -19,15 +19,9 @@ are left out), with these differences:
   for the joint solver at 105^2;
 - given the material (`compliance`, `poisson`), the unpadded spectra are raised to the
   CONTINUOUS half-space symbols where these are larger (`continuum_symbols`): on some
-  of the lowest modes the wrapped spectra fall to 0.4-0.5 of the continuous symbols
-  (elsewhere their median ratio is 0.97), and those modes are the ones of a contact
-  that fills most of the grid. On a coupled step of a Spence ramp at 105^2 over
-  2.3 a (contact and stick sets frozen, PCG to 1e-8): 14 iterations with the wrapped
-  spectra, 10 with the continuous symbols, as with the padded spectra (four times
-  the transform). The joint solver with the maximum of both: Spence 90 x 105^2 1700
-  -> 1450 iterations, -14 % time; Cattaneo-Mindlin "full" in one step 62 -> 46
-  (105^2 over 2.3 a) and 72 -> 56 (256^2 over 4 a), where the continuous symbols
-  alone gave 48 and 75.
+  of the lowest modes the wrapped spectra fall to 0.4-0.5 of the continuous symbols,
+  and those modes are the ones of a contact that fills most of the grid (measurements:
+  `benchmarks/notes/solvers.md`).
 """
 
 import jax.numpy as jnp

@@ -18,8 +18,8 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from .base import AbstractStepSolver, make_result, step_outcome
-from .normal import inverse_preconditioner, polonsky_keer
+from .base import AbstractStepSolver, StepGuess, make_result, step_outcome
+from .normal import NormalOperator, PolonskyKeer
 from .precondition import shear_x_preconditioner
 from .tangential import TangentialState, gross_sliding, tangential_cg
 
@@ -39,14 +39,13 @@ class _RoundsOperator:
         self.rtol = solver.tolerance(dtype)
         self.solver = solver
         self.operator = operator
-        nn_spec = compliance * operator.normal_spectrum(poisson)
-        self.apply_normal = lambda p: operator.inverse(operator.forward(p) * nn_spec)
-        self.precondition = None
-        if solver.precondition:
-            self.precondition = inverse_preconditioner(
-                operator, operator.normal_spectrum(poisson), poisson)
-        self.k_zz = operator.diagonal(nn_spec)  # once, not in every round
-        self.h = problem.gap + problem.history[2]
+        # The normal half of every round: one setup, its gap replaced per round.
+        self.normal_solver = PolonskyKeer(
+            rtol=solver.rtol, max_steps=solver.max_steps,
+            resync_every=solver.resync_every, precondition=solver.precondition)
+        self.normal_problem = problem.normal_part()
+        self.normal_setup = NormalOperator.of(self.normal_solver, self.normal_problem)
+        self.h = self.normal_setup.h
         if nd == 0:
             return
         xx, xy, yy = operator.tangential_blocks(poisson)
@@ -64,12 +63,10 @@ class _RoundsOperator:
         return self.operator.apply_tangential(q, self.problem.poisson, blocks=self.blocks)
 
     def solve_normal(self, h_eff, p_start):
-        s, pr = self.solver, self.problem
-        return polonsky_keer(
-            self.apply_normal, h_eff, pr.normal_target, self.area,
-            load_control=pr.normal_force_control, rtol=self.rtol,
-            max_steps=s.max_steps, resync_every=s.resync_every,
-            self_compliance=self.k_zz, p0=p_start, precondition=self.precondition)
+        p_start = jnp.asarray(p_start, self.dtype)
+        guess = StepGuess(p_start, jnp.zeros((0,) + p_start.shape, self.dtype))
+        return self.normal_solver.solve_state(
+            self.normal_problem, guess, setup=self.normal_setup.with_gap(h_eff))
 
     def uz_from_shear(self, q):
         pr, op = self.problem, self.operator

@@ -32,11 +32,9 @@ so the solver is a projected CG in the spirit of Polonsky & Keer (1999):
   passes on non-periodic grids): the direction on the stick and released cells is the
   full-plane inverse of `K_xx` (`precondition.shear_x_preconditioner`: the xx spectrum
   floored by the normal one, on the unpadded grid, raised to Cerruti's continuous
-  symbol), made mean-free under load control. Cattaneo-Mindlin in `jc.solve`: 105^2
-  over 2.3 a 42 -> 17 iterations, 256^2 over 5.5 a 42 -> 18, 512^2 over 4 a 76 -> 20
-  (1.79 -> 0.62 s), the same stick radius and compliance. With two components the
-  diagonal stays: the FFT directions did not converge on a rotating oblique load
-  history (benchmarks/README.md, `cattaneo.py`);
+  symbol), made mean-free under load control (2-4x fewer iterations on
+  Cattaneo-Mindlin: `benchmarks/notes/solvers.md`). With two components the diagonal
+  stays: the FFT directions did not converge on a rotating oblique load history;
 - convergence is tested on the Coulomb conditions AND on the loads: `residual =
   max(||violation||_2 / scale, max_d |A sum q_d - F_d| / (mu W))`, where the violation
   is `ds` on stick cells and the part of `ds` not opposite to `q` on slip cells.
