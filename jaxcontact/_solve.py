@@ -16,7 +16,7 @@ from ._loading import Force
 from ._material.elastic import Elastic
 from ._operator import HalfSpace
 from ._scene import Scene, normal_targets, tangential_targets
-from ._solution import RESULTS, Solution
+from ._solution import Solution
 from ._solver.base import AbstractStepSolver, StepGuess, StepProblem
 from ._solver.fallback import Fallback
 from ._solver.implicit import ImplicitAdjoint, differentiable_step, empty_seed

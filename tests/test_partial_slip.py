@@ -903,7 +903,7 @@ def test_fft_preconditioned_tangential_cg(control):
     # p, in at most 65 % of the iterations (measured at 48^2: load control 18 -> 8,
     # displacement control 22 -> 13; in `jc.solve` at 512^2 76 -> 20).
     from jaxcontact._solver.precondition import shear_x_preconditioner
-    from jaxcontact._solver.tangential import tangential_cg
+    from jaxcontact._solver.tangential_cg import tangential_cg
 
     n = 48
     grid = jc.Grid((n, n), 4 * hertz_radius())

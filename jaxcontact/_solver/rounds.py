@@ -21,7 +21,8 @@ import jax.numpy as jnp
 from .base import AbstractStepSolver, StepGuess, make_result, step_outcome
 from .normal import NormalOperator, PolonskyKeer
 from .precondition import shear_x_preconditioner
-from .tangential import TangentialState, gross_sliding, tangential_cg
+from .tangential import TangentialState, gross_sliding
+from .tangential_cg import tangential_cg
 
 
 class _RoundsOperator:
