@@ -236,3 +236,98 @@ def test_run_example_scene_file(tmp_path, capsys):
     assert (np.abs(fx) <= 0.3 * w * (1 + 1e-6)).all()  # Coulomb bound on the total
     assert np.all(np.diff(np.asarray(arrays["stick_ratio"][1:])) <= 1e-12)  # shrinking
     assert (tmp_path / "ramp_to_sliding_stick.png").stat().st_size > 0
+
+
+# ---- Output names and the output folder (issue 31, items 5 and 10) -------------------
+
+# The smallest scene file: elastic Hertz contact on 8 x 8 cells, one time point.
+TINY_TOML = """
+name = {name}
+[grid]
+shape = [8, 8]
+size = 4e-3
+[indenter]
+type = "sphere"
+radius = 10e-3
+[material]
+type = "elastic"
+shear_modulus = 1.93e6
+poisson = 0.3
+[time]
+times = [0.0]
+[normal]
+force = 0.15
+"""
+
+
+def _tiny(path, name='"tiny"'):
+    path.write_text(TINY_TOML.format(name=name))
+    return path
+
+
+@pytest.mark.parametrize(
+    "name", ['"../escaped"', '"sub/evil"', '"/abs/evil"', '".."', '""', '"a\\\\b"', "3"]
+)
+def test_scene_name_must_stay_inside_the_output_folder(tmp_path, capsys, name):
+    # Before: "../escaped" wrote escaped.npz and PNGs beside --out and exited 0;
+    # "sub/evil" crashed with a traceback after the solve.
+    scene_file = _tiny(tmp_path / "scene.toml", name)
+    out = tmp_path / "a" / "out"
+    assert main(["run", str(scene_file), "--out", str(out)]) == 2
+    captured = capsys.readouterr()
+    shown = repr(eval(name))  # the name as the message quotes it
+    assert f"name {shown}" in captured.err, captured.err
+    assert "solving" not in captured.out  # refused before the solve
+    written = sorted(
+        str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*") if p.is_file()
+    )
+    assert written == ["scene.toml"]
+
+
+def test_out_that_is_a_file_exits_2_before_the_solve(tmp_path, capsys):
+    target = tmp_path / "results.txt"
+    target.write_text("not a folder")
+    for out in (target, target / "deeper"):
+        assert main(["run", "hertz", "--n", "8", "--out", str(out)]) == 2
+        captured = capsys.readouterr()
+        assert captured.out == ""  # nothing solved, nothing printed
+        assert str(target) in captured.err
+        assert "not a directory" in captured.err
+    assert target.read_text() == "not a folder"
+
+
+def test_unwritable_out_exits_2_before_the_solve(tmp_path, capsys):
+    if os.geteuid() == 0:  # root ignores permissions: use a read-only mount instead
+        out = Path("/sys/jaxcontact-test-out")
+        try:
+            out.mkdir()
+        except OSError:
+            pass
+        else:  # pragma: no cover - /sys writable here: no read-only folder to test
+            out.rmdir()
+            pytest.skip("no read-only folder available to root")
+    else:
+        locked = tmp_path / "locked"
+        locked.mkdir(mode=0o555)
+        out = locked / "out"
+    assert main(["run", "hertz", "--n", "8", "--out", str(out)]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert f"--out {str(out)!r} is not a writable directory" in captured.err
+
+
+def test_existing_outputs_are_kept_unless_overwrite(tmp_path, capsys):
+    scene_file = _tiny(tmp_path / "scene.toml")
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "tiny.npz").write_bytes(b"an earlier result")
+    assert main(["run", str(scene_file), "--out", str(out)]) == 2
+    captured = capsys.readouterr()
+    assert "already holds tiny.npz: pass --overwrite" in captured.err
+    assert "solving" not in captured.out
+    assert (out / "tiny.npz").read_bytes() == b"an earlier result"
+    # --overwrite replaces it with the new result (load balance 0.15 N to 1e-7).
+    assert main(["run", str(scene_file), "--out", str(out), "--overwrite"]) == 0
+    arrays, meta = _load(out / "tiny.npz")
+    assert meta["scene"]["name"] == "tiny"
+    np.testing.assert_allclose(arrays["normal_force"], [0.15], rtol=1e-7)
