@@ -7,7 +7,10 @@ from jaxtyping import Array, Bool, Float, Int
 
 from . import _validate
 from ._grid import Grid
-from ._scene import expected_contact_radius, warn_if_too_large
+from ._scene import (
+    expected_contact_radius, expected_surface_contact, warn_if_surface_too_large,
+    warn_if_too_large,
+)
 from ._indenter import AbstractIndenter, as_indenter
 from ._material.base import AbstractMaterial
 from ._loading import Displacement, Force
@@ -129,7 +132,9 @@ def solve_normal(
 
     **Warns:** `jc.EdgeContactWarning` when the indenter is a `jc.Sphere` whose Hertz
     contact radius (or `sqrt(R delta)`) does not fit inside the grid less its outer ring
-    of cells; `NormalSolution.edge_contact` flags the solved contact exactly.
+    of cells, or a `jc.Surface` whose estimated contact (`jc.Scene`'s, a bearing-area
+    estimate) reaches the outer ring of a non-periodic grid or covers it;
+    `NormalSolution.edge_contact` flags the solved contact exactly.
 
     **Returns:** a `jc.NormalSolution` in the grid's dtype (the solve's, as in
     `jc.solve`: a float64 indenter, material or load on a float32 grid is cast). The
@@ -170,6 +175,10 @@ def solve_normal(
             indenter, grid, material, times, program, np.asarray(target).reshape(1)
         )
         warn_if_too_large(indenter, grid, estimate)
+        contact = expected_surface_contact(
+            indenter, grid, material, times, program, np.asarray(target).reshape(1)
+        )
+        warn_if_surface_too_large(grid, contact)
     # The grid's dtype is the solve's, as in `jc.solve` (a float64 indenter or material
     # on a float32 grid is cast).
     dtype = grid.size.dtype
