@@ -121,10 +121,12 @@ class AFMCurve:
         t, f, d, s = self.resampled(n_samples)
         return IndentationData(t, force=f, depth=d)
 
-    def resampled(self, n_samples=None):
-        """`(time, force, depth, segment)` averaged in bins (see `data`)."""
+    def resampled(self, n_samples=None, *, return_counts=False):
+        """`(time, force, depth, segment)` averaged in bins (see `data`); with
+        `return_counts`, also the number of raw samples in each bin."""
         if n_samples is None:
-            return self.time, self.force, self.depth, self.segment
+            out = (self.time, self.force, self.depth, self.segment)
+            return out + (np.ones(self.time.shape, int),) if return_counts else out
         if isinstance(n_samples, (int, np.integer)) and not isinstance(n_samples, bool):
             n_samples = {name: int(n_samples) for name in SEGMENT_NAMES}
         if not isinstance(n_samples, dict) or any(
@@ -136,6 +138,7 @@ class AFMCurve:
         # curve, so that the model starts from an unloaded half-space.
         first = self.time[0] <= 0
         out = [[0.0], [0.0], [0.0], [0]]
+        counts = [1]
         for code, name in enumerate(SEGMENT_NAMES):
             idx = np.flatnonzero(self.segment == code)
             if idx.size == 0:
@@ -159,8 +162,19 @@ class AFMCurve:
                 out[1].append(self.force[sel].mean())
                 out[2].append(self.depth[sel].mean())
                 out[3].append(code)
+                counts.append(sel.size)
         t, f, d, s = (np.asarray(v) for v in out)
+        if return_counts:
+            return t, f, d, s.astype(int), np.asarray(counts)
         return t, f, d, s.astype(int)
+
+    def noise(self, kind):
+        """Standard deviation of the raw samples' noise in `kind` (`"force"` [N] or
+        `"depth"` [m]): from successive differences over the kept curve,
+        `median(|x_{k+1} - x_k|) / (0.6745 sqrt 2)` (robust to the few fast
+        changes of the signal, which is smooth at the sampling rate)."""
+        x = self.force if kind == "force" else self.depth
+        return float(np.median(np.abs(np.diff(x))) / (0.6745 * np.sqrt(2)))
 
     def scene_template(self, radius, *, n=32, poisson=0.5, size_factor=4.0):
         """A `jc.Scene` for `jc.fit_prony` on this curve: a sphere of `radius` [m], an

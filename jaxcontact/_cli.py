@@ -595,6 +595,9 @@ def _parser():
     )
     sub.add_parser("presets", help="list the built-in presets")
     sub.add_parser("examples", help="same as `presets`")
+    from ._cli_fit import add_parser as add_fit_parser
+
+    add_fit_parser(sub)
     return parser
 
 
@@ -605,6 +608,10 @@ def main(argv=None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # argparse: 2 for bad usage, 0 for --help
         return int(exc.code or 0)
+    if args.command == "fit":
+        from ._cli_fit import run_fit
+
+        return run_fit(args)
     try:
         if args.command in ("presets", "examples"):
             from . import presets

@@ -236,3 +236,61 @@ def test_relaxation_file():
     assert f[-50:].mean() < 0.6 * f[:5].mean()
     tmpl = c.scene_template(5e-6, n=16)
     assert isinstance(tmpl.normal, jc.Displacement)
+
+
+# ---- the `jaxcontact fit` command ---------------------------------------------------
+
+
+@pytest.mark.parametrize("argv, match", [
+    (["--radius", "-1"], "--radius must be a finite number > 0"),
+    (["--radius", "nan"], "--radius must be a finite number > 0"),
+    (["--radius", "5e-6", "--arms", "x"], "--arms must be an integer or 'auto'"),
+    (["--radius", "5e-6", "--arms", "0"], "--arms must be in 1..8"),
+    (["--radius", "5e-6", "--samples", "4,4"], "--samples must be three integers"),
+    (["--radius", "5e-6", "--segments", "hold"], "--segments must list approach"),
+    (["--radius", "5e-6", "--poisson", "0.7"], "--poisson must be in"),
+])
+def test_fit_command_bad_input(argv, match, tmp_path, capsys):
+    from jaxcontact._cli import main
+
+    assert main(["fit", RELAX, "--out", str(tmp_path), *argv]) == 2
+    assert match in capsys.readouterr().err
+
+
+def test_fit_command_missing_file(tmp_path, capsys):
+    from jaxcontact._cli import main
+
+    assert main(["fit", str(tmp_path / "none.jpk-force"), "--radius", "5e-6"]) == 2
+    assert "no such file" in capsys.readouterr().err
+
+
+def test_fit_command_on_the_relaxation_file_and_the_radius_scaling(tmp_path, capsys):
+    """A tiny fit (8^2 grid, 1 arm, 4 + 8 points) of the relaxation file at two radii:
+    the JSON and the plot are written, the output states the radius note, and the
+    fitted relaxation time agrees between the radii while the moduli scale as
+    R^(-1/2) (the scene template scales the grid with sqrt(R * depth), so the two
+    discrete problems are similar: to 1e-3, the fits' own tolerance)."""
+    import json
+
+    pytest.importorskip("afmformats")
+    from jaxcontact._cli import main
+
+    out = {}
+    for radius in (5e-6, 20e-6):
+        d = tmp_path / f"r{radius:g}"
+        code = main(["fit", RELAX, "--radius", str(radius), "--n", "8", "--arms", "1",
+                     "--samples", "4,8,1", "--segments", "approach,hold",
+                     "--out", str(d)])
+        assert code in (0, 1)
+        text = capsys.readouterr().out
+        assert "absolute moduli scale as radius^(-1/2)" in text
+        js = json.loads((d / "fmt-jpk-sr_cell1-0008_fit.json").read_text())
+        assert js["mode"] == "relaxation" and js["fitted"] == "force"
+        assert js["radius_m"] == radius and js["arms"] == 1
+        if js["plot"]:
+            assert (d / "fmt-jpk-sr_cell1-0008_fit.png").stat().st_size > 1000
+        out[radius] = js["parameters"]
+    a, b = out[5e-6], out[20e-6]
+    assert abs(b["tau_s"][0]["value"] / a["tau_s"][0]["value"] - 1) < 1e-3
+    assert abs(b["g_Pa"][0]["value"] / a["g_Pa"][0]["value"] - 0.5) < 1e-3
+    assert abs(b["g_inf_Pa"]["value"] / a["g_inf_Pa"]["value"] - 0.5) < 1e-3
