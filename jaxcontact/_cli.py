@@ -321,7 +321,7 @@ def _scene_from_args(args, dtype):
         try:
             spec = jc.presets.read_toml(path)
             scene, options = jc.presets.from_spec(
-                spec, n=args.n, steps=args.steps, dtype=dtype
+                spec, n=args.n, steps=args.steps, dtype=dtype, base=path.parent
             )
         except (ValueError, TypeError) as exc:
             raise InputError(f"scene file {target}: {exc}") from exc

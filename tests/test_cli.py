@@ -172,6 +172,16 @@ def test_example_scene_file_parses_with_overrides():
         (ZENER_TOML.replace('slip = "total"', 'slip = "some"'), "slip"),
         (ZENER_TOML + "\n[extra]\na = 1\n", "extra"),
         (ZENER_TOML.replace("steps = 7", "steps = 0"), "steps"),
+        # Wrong types (issue 31): each named with its table and value, exit 2.
+        (ZENER_TOML.replace("shape = [24, 24]", 'shape = "big"'),
+         "[grid] shape must be [nx, ny], got 'big'"),
+        (ZENER_TOML.replace("end = 0.03\nsteps = 7", 'times = [0.0, "a"]'),
+         "[time] times must be a number or a list of numbers, got [0.0, 'a']"),
+        (ZENER_TOML.replace("force = 0.15", "force = {{t = [0, 1], value = [0, 'a']}}"),
+         "[normal] force.value must be a number or a list of numbers"),
+        (ZENER_TOML.replace("radius = 10e-3", 'radius = "x"'), "radius"),
+        (ZENER_TOML.replace('slip = "total"', 'friction = "high"'), "'high'"),
+        (ZENER_TOML.replace("[grid]", "grid = 3\n[other]"), "['other']"),
     ],
 )
 def test_bad_scene_file_exits_2_naming_the_problem(tmp_path, capsys, body, message):
@@ -331,3 +341,68 @@ def test_existing_outputs_are_kept_unless_overwrite(tmp_path, capsys):
     arrays, meta = _load(out / "tiny.npz")
     assert meta["scene"]["name"] == "tiny"
     np.testing.assert_allclose(arrays["normal_force"], [0.15], rtol=1e-7)
+
+
+# ---- Scene files: a height-field indenter (issue 31, Deliver 3) -----------------------
+
+
+def _surface_toml(folder, file_line, extra=""):
+    body = TINY_TOML.format(name='"surf"').replace(
+        'type = "sphere"\nradius = 10e-3', f'type = "surface"\n{file_line}{extra}'
+    )
+    path = folder / "surf.toml"
+    path.write_text(body)
+    return path
+
+
+def _sphere_gap():
+    grid = jc.Grid((8, 8), 4e-3)
+    return np.asarray(jc.Sphere(10e-3).gap(grid))
+
+
+def test_scene_file_surface_from_a_height_file(tmp_path, capsys, monkeypatch):
+    # The sphere's own gap, stored in micrometres beside the scene file and read with
+    # scale = 1e-6: the same scene as TINY_TOML's sphere (relative to the scene file's
+    # folder, not to the working directory).
+    folder = tmp_path / "scenes"
+    folder.mkdir()
+    np.save(folder / "heights.npy", _sphere_gap() * 1e6)
+    np.savetxt(folder / "heights.csv", _sphere_gap() * 1e6, delimiter=",")
+    monkeypatch.chdir(tmp_path)
+    for name in ("heights.npy", "heights.csv"):
+        path = _surface_toml(folder, f'file = "{name}"', "\nscale = 1e-6")
+        scene, _ = jc.presets.from_toml(path)
+        assert isinstance(scene.indenter, jc.Surface)
+        np.testing.assert_allclose(scene.indenter.heights, _sphere_gap(), rtol=1e-12)
+    # Solved through the CLI: the approach equals the sphere scene's (rtol 1e-10).
+    assert main(["run", str(path), "--out", str(tmp_path / "out")]) == 0
+    sphere_file = _tiny(tmp_path / "tiny.toml")
+    assert main(["run", str(sphere_file), "--out", str(tmp_path / "out")]) == 0
+    surf, meta = _load(tmp_path / "out" / "surf.npz")
+    tiny, _ = _load(tmp_path / "out" / "tiny.npz")
+    assert meta["scene_summary"]["indenter"] == "Surface"
+    np.testing.assert_allclose(surf["approach"], tiny["approach"], rtol=1e-10)
+
+
+@pytest.mark.parametrize(
+    "file_line, extra, argv, message",
+    [
+        ('file = "missing.npy"', "", [], "missing.npy' does not exist"),
+        ('file = "small.npy"', "", [], "has shape (4, 4), the [grid] shape is (8, 8)"),
+        ('file = "heights.npy"', "", ["--n", "16"], "a surface file is not resampled"),
+        ('file = "heights.npy"', '\nscale = "um"', [], "scale must be a number, got 'um'"),
+        ('file = "heights.png"', "", [], "expected .npy, .txt, .csv or .dat"),
+        ("file = 3", "", [], "file must be a path, got 3"),
+        ('radius = 1e-3', "", [], "unknown key(s) ['radius']"),
+        ('file = "text.txt"', "", [], "text.txt' cannot be read"),
+    ],
+)
+def test_bad_surface_file_exits_2(tmp_path, capsys, file_line, extra, argv, message):
+    np.save(tmp_path / "heights.npy", _sphere_gap())
+    np.save(tmp_path / "small.npy", np.zeros((4, 4)))
+    (tmp_path / "heights.png").write_bytes(b"\x89PNG")
+    (tmp_path / "text.txt").write_text("a b c\nd e f\n")
+    path = _surface_toml(tmp_path, file_line, extra)
+    assert main(["run", str(path), *argv, "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert message in err, err
