@@ -412,6 +412,9 @@ def read_afm(source, *, index=0, contact_index=None, baseline="constant",
         xc, coef = contact_point(travel, force[app], baseline=baseline)
         ic = app[min(int(np.argmax(travel >= xc)) if (travel >= xc).any() else app.size,
                      app.size - 1)]
+        # On the approach proper: the tip's travel fluctuates about 0 in a pause
+        # before it (noise / k), and a contact at its start must not land there.
+        ic = max(int(ic), int(np.flatnonzero(code == 0)[0]))
     else:
         if not (isinstance(contact_index, (int, np.integer)) and app[0] <= contact_index
                 <= app[-1]):

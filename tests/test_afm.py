@@ -226,6 +226,12 @@ def test_relaxation_file():
     pytest.importorskip("afmformats")
     c = jc.read_afm(RELAX)
     assert c.mode == "relaxation"
+    # The file starts with a 1 s pause (t < 1 s) at the approach's starting height;
+    # the contact is on the approach (the tip's travel in the pause is noise / k ~ 0
+    # and once put the contact there, shifting the time axis by ~1 s).
+    raw = c.raw
+    assert raw["segment"][raw["contact_index"]] == 0 and c.contact_time >= 1.0
+    assert np.all(raw["segment"][raw["time"] < 0.99] == -1)
     assert abs(c.spring_constant - 1.0677) < 1e-6
     hold = c.segment == 1
     t = c.time[hold]
