@@ -425,9 +425,12 @@ def _run_scene(args, dtype) -> int:
         flush=True,
     )
     start = time.perf_counter()
+    from ._validate import clear_runtime_errors
+
     try:
-        sol = jc.solve(scene, progress=nt > 1, **options)
-        sol = jax.tree_util.tree_map(np.asarray, sol)
+        with clear_runtime_errors():  # a failed run-time check: exit 2, message first
+            sol = jc.solve(scene, progress=nt > 1, **options)
+            sol = jax.tree_util.tree_map(np.asarray, sol)
     except (ValueError, TypeError) as exc:
         raise InputError(f"{stem}: {exc}") from exc
     elapsed = time.perf_counter() - start

@@ -643,3 +643,59 @@ def warnings_as_list():
             return self.ctx.__exit__(*exc)
 
     return _Catch()
+
+
+class TestRuntimeMessageFirst:
+    """What a user sees of a traced check (measured): under `jax.jit` the first line is
+    "INTERNAL: CpuCallback error ..." and the message sits ~50 lines down; under
+    `eqx.filter_jit` / `jc.solve` the first line is equinox's "Above is the stack ...".
+    `_validate.clear_runtime_errors` re-raises it as a ValueError whose first line is
+    the message."""
+
+    @staticmethod
+    def build(w):
+        sc = jc.Scene(GRID, jc.Sphere(1.0), ELASTIC, TIMES, jc.Force(w))
+        return jc.solve(sc).approach[-1]
+
+    def first_line(self, fn):
+        with pytest.raises(Exception) as info:
+            jax.block_until_ready(fn())
+        return str(info.value).splitlines()[0], info.value
+
+    def test_jax_jit(self):
+        from jaxcontact._validate import clear_runtime_errors
+
+        fn = jax.jit(self.build)
+        line, exc = self.first_line(lambda: fn(-0.01))
+        assert line.startswith("INTERNAL: CpuCallback error")  # what users see today
+        assert "normal force must be" in str(exc)
+
+        def clear():
+            with clear_runtime_errors():
+                return jax.block_until_ready(fn(-0.01))
+
+        line, exc = self.first_line(clear)
+        assert isinstance(exc, ValueError)
+        assert line == "normal force must be finite and >= 0"
+
+    def test_solve_of_a_changed_scene(self):
+        from jaxcontact._validate import clear_runtime_errors
+
+        sc = eqx.tree_at(lambda s: s.times, scene(), jnp.asarray([0.0, 1.0, 0.5]))
+        line, _ = self.first_line(lambda: jc.solve(sc))
+        assert line.startswith("Above is the stack outside of JIT")
+
+        def clear():
+            with clear_runtime_errors():
+                return jc.solve(sc)
+
+        line, exc = self.first_line(clear)
+        assert isinstance(exc, ValueError)
+        assert line == "times must be strictly increasing (in the grid's dtype)"
+
+    def test_other_errors_pass_through(self):
+        from jaxcontact._validate import clear_runtime_errors
+
+        with pytest.raises(KeyError, match="other"):
+            with clear_runtime_errors():
+                raise KeyError("other")
