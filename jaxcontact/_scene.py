@@ -260,16 +260,26 @@ class Scene(eqx.Module):
     argument and the bad value) for NaN/inf, negative friction, non-scalar friction,
     empty or non-increasing `times`, a load program whose length differs from `times`
     (or a callable returning NaN), a negative normal force, a surface whose shape differs
-    from the grid, an unknown `coupling` or `slip`. Traced values (a scene built inside
-    `jit`/`vmap`) skip the value checks that cannot be staged.
+    from the grid, an unknown `coupling` or `slip`. The values are also checked as a
+    solve in the grid's dtype sees them (`jc.solve` casts to it): `times` must stay
+    strictly increasing once cast, each step within 1 %; loads, friction, size and the
+    indenter must stay finite; the material must pass its own checks in that dtype and
+    its creep compliance `J(0)`, `J(t_end - t_0)` [1/stress] lie within
+    `[sqrt(tiny), 1 / sqrt(tiny)]` of it (float32: about `[1.1e-19, 9.2e18]`). Traced
+    values (a scene built inside `jit`/`vmap`) are checked with `eqx.error_if` where the
+    check can be staged (times strictly increasing, a non-negative normal force: these
+    two are checked again when `jc.solve` reads them, which covers callables and scenes
+    changed with `eqx.tree_at`).
 
-    **Warns:** `jc.EdgeContactWarning` when the indenter is a `jc.Sphere` on a
-    non-periodic grid and an upper estimate of its largest contact radius (Hertz with the
-    largest normal force and the compliance `J(t_end - t_0)`, or `sqrt(R delta_max)`
-    under displacement control) does not fit inside the grid less its outer ring of
-    cells: the contact would be truncated by the domain. A warning, not an error: the
-    estimate is an upper bound (coarse for a soft fluid), and a solved scene carries the
-    exact flag `Solution.edge_contact`.
+    **Warns:** `jc.EdgeContactWarning` on a non-periodic grid when the contact is
+    expected to reach the edge of the domain: for a `jc.Sphere`, when an upper estimate
+    of its largest contact radius (Hertz with the largest normal force and the
+    compliance `J(t_end - t_0)`, or `sqrt(R delta_max)` under displacement control) does
+    not fit inside the grid less its outer ring of cells; for a `jc.Surface`, when a
+    bearing-area estimate of its largest contact (`expected_surface_contact`: exact for
+    a paraboloid) reaches the outer ring of cells or covers every cell. A warning, not
+    an error: these are estimates, and a solved scene carries the exact flag
+    `Solution.edge_contact`.
     """
 
     grid: Grid

@@ -182,6 +182,12 @@ def test_example_scene_file_parses_with_overrides():
         (ZENER_TOML.replace("radius = 10e-3", 'radius = "x"'), "radius"),
         (ZENER_TOML.replace('slip = "total"', 'friction = "high"'), "'high'"),
         (ZENER_TOML.replace("[grid]", "grid = 3\n[other]"), "['other']"),
+        (ZENER_TOML.replace("[time]\nend = 0.03\nsteps = 7\n", ""),
+         "missing [time] table"),
+        ("material = 3\n" + ZENER_TOML.replace(
+            '[material]\ntype = "zener"\nmu_inf = 1.93e6\nmu_0 = 482500.0\n'
+            'tau = 0.01\npoisson = 0.3\n', ""),
+         "[material] must be a table, got 3"),
     ],
 )
 def test_bad_scene_file_exits_2_naming_the_problem(tmp_path, capsys, body, message):
@@ -406,3 +412,15 @@ def test_bad_surface_file_exits_2(tmp_path, capsys, file_line, extra, argv, mess
     assert main(["run", str(path), *argv, "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err
     assert message in err, err
+
+
+def test_scene_file_sphere_centre(tmp_path, capsys):
+    body = TINY_TOML.format(name='"tiny"').replace(
+        "radius = 10e-3", "radius = 10e-3\ncentre = [1e-4, -2e-4]"
+    )
+    (tmp_path / "c.toml").write_text(body)
+    scene, _ = jc.presets.from_toml(tmp_path / "c.toml")
+    np.testing.assert_array_equal(np.asarray(scene.indenter.centre), [1e-4, -2e-4])
+    (tmp_path / "c.toml").write_text(body.replace("[1e-4, -2e-4]", "[1e-4]"))
+    assert main(["run", str(tmp_path / "c.toml"), "--out", str(tmp_path / "o")]) == 2
+    assert "[indenter] centre must be [x, y], got [0.0001]" in capsys.readouterr().err
