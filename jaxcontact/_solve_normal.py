@@ -8,11 +8,11 @@ from jaxtyping import Array, Bool, Float, Int
 from . import _validate
 from ._grid import Grid
 from ._scene import (
-    expected_contact_radius, expected_surface_contact, warn_if_surface_too_large,
-    warn_if_too_large,
+    _check_finite_in_dtype, expected_contact_radius, expected_surface_contact,
+    warn_if_surface_too_large, warn_if_too_large,
 )
 from ._indenter import AbstractIndenter, as_indenter
-from ._material.base import AbstractMaterial
+from ._material.base import AbstractMaterial, check_in_dtype
 from ._loading import Displacement, Force
 from ._operator import HalfSpace
 from ._solution import edge_ring
@@ -169,6 +169,10 @@ def solve_normal(
     if target.shape != ():
         raise ValueError(f"force/approach must be a scalar, got shape {target.shape}")
     if not _validate.is_traced((target, material, grid.size)):
+        # As in `jc.Scene`: checked in the dtype the solve uses (the grid's).
+        check_in_dtype(material, grid.size.dtype, 0.0)
+        _check_finite_in_dtype("force" if load_control else "approach", target,
+                               grid.size.dtype)
         program = Force(target) if load_control else Displacement(target)
         times = jnp.zeros((1,), dtype=target.dtype)  # one instantaneous step: J(0)
         estimate = expected_contact_radius(

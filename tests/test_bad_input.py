@@ -554,6 +554,14 @@ class TestSolveDtype:
         raises(lambda: self.scene32(x=jc.Displacement([0.0, 1.0, 1e39])), ValueError,
                "x displacement [0.e+00 1.e+00 1.e+39] overflows in float32")
 
+    def test_solve_normal_checks_in_the_grid_dtype(self):
+        raises(lambda: jc.solve_normal(self.GRID32, jc.Sphere(1.0),
+                                       jc.Elastic(1e38, 0.3), force=0.01),
+               ValueError, "J(0) = 1e-38", "float32")
+        raises(lambda: jc.solve_normal(self.GRID32, jc.Sphere(1.0), ELASTIC,
+                                       force=1e39),
+               ValueError, "force 1e+39 overflows in float32")
+
     def test_a_preset_cast_to_float32_is_checked_again(self):
         # jc.presets cast with dtype=: the scene is rebuilt in float32, so its checks
         # run in the solve's dtype.

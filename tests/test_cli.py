@@ -424,3 +424,16 @@ def test_scene_file_sphere_centre(tmp_path, capsys):
     (tmp_path / "c.toml").write_text(body.replace("[1e-4, -2e-4]", "[1e-4]"))
     assert main(["run", str(tmp_path / "c.toml"), "--out", str(tmp_path / "o")]) == 2
     assert "[indenter] centre must be [x, y], got [0.0001]" in capsys.readouterr().err
+
+
+def test_float32_run_checks_the_scene_in_float32(tmp_path, capsys):
+    # The scene file is read in float64 and cast (--float32): the cast scene is checked
+    # again. Late times collapse in float32 (before: solved, the steps wrong).
+    body = TINY_TOML.format(name='"late"').replace(
+        "times = [0.0]", "times = [1e5, 100000.005, 100000.01]"
+    )
+    path = tmp_path / "late.toml"
+    path.write_text(body)
+    assert main(["run", str(path), "--out", str(tmp_path / "o"), "--float32"]) == 2
+    err = capsys.readouterr().err
+    assert "times are not strictly increasing in float32" in err, err
