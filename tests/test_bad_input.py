@@ -8,6 +8,7 @@ a 16 x 16 grid.
 """
 
 import re
+import warnings
 
 import equinox as eqx
 import jax
@@ -612,7 +613,8 @@ class TestSurfaceEdge:
         force = jc.Force(TestEdgeOfDomain.hertz_force(self, a))
         mat = jc.Elastic(self.G, self.NU)
         for indenter in (jc.Surface(self.paraboloid()), jc.Sphere(self.R)):
-            with warnings_as_list() as caught:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always", jc.EdgeContactWarning)
                 jc.Scene(self.GRID16, indenter, mat, TIMES, normal=force)
             assert (len(caught) == 1) == warns, (indenter, caught)
 
@@ -635,22 +637,6 @@ class TestSurfaceEdge:
             jc.solve_normal(self.GRID16, flat, mat, force=1e-3)
         periodic = jc.Grid((16, 16), 2e-3, periodic=True)
         jc.Scene(periodic, flat, mat, TIMES, normal=jc.Force(1e-3))
-
-
-def warnings_as_list():
-    import warnings
-
-    class _Catch:
-        def __enter__(self):
-            self.ctx = warnings.catch_warnings(record=True)
-            self.caught = self.ctx.__enter__()
-            warnings.simplefilter("always", jc.EdgeContactWarning)
-            return self.caught
-
-        def __exit__(self, *exc):
-            return self.ctx.__exit__(*exc)
-
-    return _Catch()
 
 
 class TestRuntimeMessageFirst:
