@@ -134,10 +134,16 @@ def check_in_dtype(material: AbstractMaterial, dtype, span) -> None:
     with jax.ensure_compile_time_eval():  # in the material's own (wider) precision
         compliances = np.asarray(material.creep(jnp.asarray([0.0, float(span)])))
     for label, value in zip(("J(0)", f"J({float(span):.4g})"), compliances):
+        value = float(value)
         if not (np.isfinite(value) and low <= value <= high):
+            modulus = 1 / value if value else float("inf")
+            given = ", ".join(
+                f"{k}={np.asarray(v).tolist()!r}" for k, v in fields.items()
+            )
             raise ValueError(
-                f"material: the creep compliance {label} = {value:.4g} [1/stress] (a "
-                f"modulus of {1 / value:.4g}) is outside the range [{low:.2g}, "
+                f"material {type(material).__name__}({given}): the creep compliance "
+                f"{label} = {value:.4g} [1/stress] (a "
+                f"modulus of {modulus:.4g}) is outside the range [{low:.2g}, "
                 f"{high:.2g}] that a solve in {name} (the grid's dtype) can represent "
                 "with its products and squares: restate the scene in other units "
                 "(e.g. MPa and mm) or solve in float64"
