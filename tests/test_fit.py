@@ -119,7 +119,8 @@ def test_fit_recovers_pmma_on_the_closed_form_model(kind):
     err = np.abs(params(fit.material) / params(pmma()) - 1)
     assert np.all(err < 1e-6), err
     assert fit.loss < 1e-18
-    assert fit.loss_history.shape == (1 + fit.adam_steps + fit.lbfgs_steps,)
+    assert fit.optimiser == "lm" and fit.lm_steps > 0  # the default (optimistix)
+    assert fit.loss_history[0] >= fit.loss_history[-1] == fit.loss
     # The start (apparent moduli + a cheap Prony fit to them) is already close: for a
     # held step on this model the apparent modulus is G(t) (1/J(t)) itself.
     assert fit.loss_history[0] < 1e-4
@@ -200,12 +201,60 @@ def test_a_fit_stuck_at_a_boundary_restarts_or_says_it_has_not_converged(monkeyp
     assert "can still lower the loss" in stuck.message
 
 
-def test_a_fit_stopped_early_is_not_converged():
+@pytest.mark.parametrize("limits", [dict(optimiser="lm", lm_steps=1),
+                                    dict(optimiser="lbfgs", adam_steps=0, lbfgs_steps=1)])
+def test_a_fit_stopped_early_is_not_converged(limits):
     data, template, model = ramp_hold_unload_case()
     start = jc.Prony(3e9, jnp.array([0.7e9]), jnp.array([1.5]), NU)
-    fit = jc.fit_prony(data, template, 1, _model=model, init=start, adam_steps=0,
-                       lbfgs_steps=1)
+    fit = jc.fit_prony(data, template, 1, _model=model, init=start, **limits)
     assert not fit.converged, fit.message
+    assert fit.optimiser == limits["optimiser"]
+
+
+@pytest.mark.parametrize("optimiser, kind", [
+    ("lm", "force"), ("lm", "depth"), ("lbfgs", "force"),
+    pytest.param("lbfgs", "depth", marks=pytest.mark.xfail(strict=True, reason=(
+        "preconditioned L-BFGS from (0.2, 0.2, 5) x the truth stops at its iteration "
+        "bound (and says NOT converged): why LM is the default")))])
+def test_far_starts_reach_the_minimum(kind, optimiser):
+    """Starts 0.2-5x off in every parameter (4 of them), 1 % noise, a ramp-hold-unload
+    (force fitted) and a ramp-hold creep (depth fitted) curve: every fit converged with
+    every parameter within 3 reported standard deviations of the truth. Before:
+    L-BFGS (with its default preconditioning) from (5, 0.2, 0.2) x the truth on the
+    creep curve ended at g_1 = 0, tau_1 = 2e69 s saying converged=True, and from
+    (0.2, 0.2, 5) at its iteration bound."""
+    if kind == "force":
+        data, template, model = ramp_hold_unload_case()
+    else:
+        data, template, model = ramp_hold_creep_case()
+    truth = np.array(ONE_ARM)
+    for f in ([5, 0.2, 0.2], [0.2, 0.2, 5], [0.2, 5, 0.5], [5, 5, 2]):
+        start = jc.Prony(truth[0] * f[0], jnp.array([truth[1] * f[1]]),
+                         jnp.array([truth[2] * f[2]]), NU)
+        fit = jc.fit_prony(data, template, 1, _model=model, init=start,
+                           optimiser=optimiser)
+        assert fit.converged, (f, fit.message)
+        std = np.concatenate([[fit.std["g_inf"]], fit.std["g"], fit.std["tau"]])
+        z = np.log(params(fit.material) / truth) / std
+        assert np.all(np.abs(z) < 3), (f, params(fit.material), std)
+
+
+def ramp_hold_creep_case(noise=0.01, seed=0):
+    """A 0.5 s load ramp to 10 N held to 2 s (load control); the stand-in model's
+    depth with one arm and `noise` x max depth Gaussian noise."""
+    times = jnp.asarray(np.concatenate([np.linspace(0, 0.5, 6),
+                                        np.linspace(0.5, 2.0, 13)[1:]]))
+    load = jnp.interp(times, jnp.array([0, 0.5, 2.0]), jnp.array([0, 10.0, 10.0]))
+    truth = jc.Prony(ONE_ARM[0], jnp.array([ONE_ARM[1]]), jnp.array([ONE_ARM[2]]), NU)
+    ctx = (times, load)
+    depth, _ = hertz_volterra_depth(truth, ctx)
+    rng = np.random.default_rng(seed)
+    depth = np.asarray(depth) + noise * float(jnp.max(depth)) * rng.standard_normal(
+        times.shape)
+    template = jc.Scene(jc.Grid((8, 8), 1280e-6), jc.Sphere(R), jc.Elastic(1e9, NU),
+                        times, normal=jc.Force(load))
+    return jc.IndentationData(times, force=load, depth=depth), template, (
+        hertz_volterra_depth, ctx)
 
 
 @pytest.mark.slow
