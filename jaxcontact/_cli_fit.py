@@ -2,7 +2,7 @@
 
     jaxcontact fit FILE... --radius R [--arms N|auto] [--out DIR] [--n N]
                    [--poisson NU] [--baseline constant|linear] [--samples A,H,R]
-                   [--segments approach,hold,retract]
+                   [--segments approach,hold,retract] [--steps K]
 
 Each file is read by `jc.read_afm` (afmformats: `pip install "jaxcontact[afm]"`), its
 segments binned (`--samples`: points in the approach, hold and retract after contact),
@@ -52,6 +52,8 @@ def add_parser(sub):
                    help="Poisson's ratio, fixed (default 0.5: incompressible)")
     p.add_argument("--baseline", default="constant", choices=("constant", "linear"),
                    help="baseline of the contact point fit")
+    p.add_argument("--steps", type=int, default=200,
+                   help="bound on the Levenberg-Marquardt steps (default 200)")
     p.add_argument("--samples", default="8,24,8", metavar="A,H,R",
                    help="points after binning in the approach, hold and retract")
     p.add_argument("--segments", default="approach,hold,retract",
@@ -69,6 +71,8 @@ def _check(args):
             raise _BadInput(f"--arms must be an integer or 'auto', got {args.arms!r}")
         if not 1 <= arms <= 8:
             raise _BadInput(f"--arms must be in 1..8, got {arms}")
+    if args.steps < 1:
+        raise _BadInput(f"--steps must be >= 1, got {args.steps}")
     if args.n < 4:
         raise _BadInput(f"--n must be >= 4, got {args.n}")
     if not (-1 < args.poisson <= 0.5):
@@ -101,6 +105,16 @@ def _information(fit, n_params):
     return base + 2 * n_params, base + n_params * math.log(n)
 
 
+def _correlation(cov):
+    """Correlation matrix of a covariance (nested lists; None where undetermined)."""
+    import numpy as np
+
+    d = np.sqrt(np.diag(cov))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        c = cov / np.outer(d, d)
+    return [[float(v) if np.isfinite(v) else None for v in row] for row in c]
+
+
 def _fit_one(path, args, samples, segments):
     import numpy as np
 
@@ -120,7 +134,7 @@ def _fit_one(path, args, samples, segments):
     for k in arm_counts:
         if t.size <= 2 * k + 2:
             break
-        fit = jc.fit_prony(data, template, k)
+        fit = jc.fit_prony(data, template, k, lm_steps=args.steps)
         aic, bic = _information(fit, 1 + 2 * k)
         fits[k] = (fit, aic, bic)
     if not fits:
@@ -159,6 +173,8 @@ def _fit_one(path, args, samples, segments):
             "tau_s": [entry(v, s) for v, s in zip(np.asarray(m.tau), fit.std["tau"],
                                                    strict=True)],
         },
+        "log_parameter_names": list(fit.parameter_names),
+        "log_parameter_correlation": _correlation(fit.covariance),
         "instantaneous_modulus_Pa": g0,
         "ratios_g_over_g0": [float(v) / g0 for v in np.asarray(m.g)],
         "residual_rms": rms,

@@ -297,6 +297,10 @@ class PronyFit(eqx.Module):
     - `std`: dict `g_inf`, `g`, `tau` (and `poisson` when fitted): Gauss-Newton
       standard deviation of the natural LOG of each parameter (~ relative standard
       deviation), from `noise_std` or the residual (see the module notes).
+    - `covariance`: `(p, p)` Gauss-Newton covariance of the natural logs of the
+      parameters, in the order `parameter_names` (`g_inf`, `g_1..g_n`, `tau_1..tau_n`
+      sorted by tau, then `poisson` when fitted); `std` is the root of its diagonal;
+      `inf` in the rows of undetermined parameters.
     - `gradient`: dict with the same keys: `d(loss)/d(log param)` at the result.
     - `noise`: the noise level used for `std` [units of the data].
     """
@@ -319,6 +323,8 @@ class PronyFit(eqx.Module):
     residual: np.ndarray
     kind: str
     std: dict
+    covariance: np.ndarray
+    parameter_names: tuple
     gradient: dict
     noise: float
 
@@ -898,8 +904,11 @@ def fit_prony(
         # a parameter with a component along an undetermined direction: inf
         var = np.where(np.any((eigvec**2 > 0) & ~keep[None, :], axis=1), np.inf, var)
         std = np.where(np.isinf(var), np.inf, np.sqrt(var) * sigma_rel)
+        cov = sigma_rel**2 * (eigvec * inv[None, :]) @ eigvec.T
+        cov = np.where(np.isinf(var)[:, None] | np.isinf(var)[None, :], np.inf, cov)
     else:
         std = np.full(rows.shape[1], np.nan)
+        cov = np.full((rows.shape[1],) * 2, np.nan)
         message += "; the model's Jacobian is not finite: std is NaN"
     # Certification: converged means the Gauss-Newton model at the result predicts no
     # decrease of the loss worth having (relative decrease < `_GN_TOL`), and no
@@ -925,6 +934,17 @@ def fit_prony(
     material = Prony(material.g_inf, material.g[order], material.tau[order],
                      material.poisson)
 
+    # The covariance in the order g_inf, g_1..g_n, tau_1..tau_n (sorted by tau)
+    # [, poisson]: a permutation of ravel_pytree's (alphabetical keys) layout.
+    index = _split(theta, np.arange(rows.shape[1]))
+    perm = np.concatenate([np.atleast_1d(index["g_inf"]), index["g"][order],
+                           index["tau"][order]]
+                          + ([np.atleast_1d(index["poisson"])] if fit_poisson else [])
+                          ).astype(int)
+    names = (("g_inf",) + tuple(f"g_{i + 1}" for i in range(n))
+             + tuple(f"tau_{i + 1}" for i in range(n))
+             + (("poisson",) if fit_poisson else ()))
+
     def sorted_split(values):
         out = _split(theta, values)
         out["g"], out["tau"] = out["g"][order], out["tau"][order]
@@ -949,6 +969,8 @@ def fit_prony(
         residual=residual,
         kind=kind,
         std=sorted_split(std),
+        covariance=cov[np.ix_(perm, perm)],
+        parameter_names=names,
         gradient=sorted_split(np.asarray(ravel_pytree(grad)[0])),
         noise=sigma_rel * scale_f,
     )

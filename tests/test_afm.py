@@ -255,6 +255,7 @@ def test_relaxation_file():
     (["--radius", "5e-6", "--samples", "4,4"], "--samples must be three integers"),
     (["--radius", "5e-6", "--segments", "hold"], "--segments must list approach"),
     (["--radius", "5e-6", "--poisson", "0.7"], "--poisson must be in"),
+    (["--radius", "5e-6", "--steps", "0"], "--steps must be >= 1"),
 ])
 def test_fit_command_bad_input(argv, match, tmp_path, capsys):
     from jaxcontact._cli import main
@@ -293,6 +294,8 @@ def test_fit_command_on_the_relaxation_file_and_the_radius_scaling(tmp_path, cap
         js = json.loads((d / "fmt-jpk-sr_cell1-0008_fit.json").read_text())
         assert js["mode"] == "relaxation" and js["fitted"] == "force"
         assert js["radius_m"] == radius and js["arms"] == 1
+        corr = np.array(js["log_parameter_correlation"], float)
+        assert corr.shape == (3, 3) and np.allclose(np.diag(corr), 1)
         if js["plot"]:
             assert (d / "fmt-jpk-sr_cell1-0008_fit.png").stat().st_size > 1000
         out[radius] = js["parameters"]

@@ -308,8 +308,16 @@ def test_sensitivities_match_finite_differences_and_predict_the_noise_error():
     h = 1e-6
     jac = np.stack([(curve(theta + h * e) - curve(theta - h * e)) / (2 * h)
                     for e in np.eye(5)], axis=1)
-    std_fd = np.sqrt(np.diag(np.linalg.inv(jac.T @ jac))) * rows[1][0]
+    cov_fd = np.linalg.inv(jac.T @ jac) * rows[1][0] ** 2
+    std_fd = np.sqrt(np.diag(cov_fd))
     np.testing.assert_allclose(rows[1][2], std_fd, rtol=1e-3)
+    # the whole covariance (same order: g_inf, g_1, g_2, tau_1, tau_2), not only its
+    # diagonal: the correlations to 1e-2 absolute
+    assert fit.parameter_names == ("g_inf", "g_1", "g_2", "tau_1", "tau_2")
+    corr = fit.covariance / np.outer(std_fd, std_fd)
+    corr_fd = cov_fd / np.outer(std_fd, std_fd)
+    np.testing.assert_allclose(corr, corr_fd, atol=1e-2)
+    assert np.max(np.abs(corr_fd - np.eye(5))) > 0.5  # the test sees correlations
 
 
 @pytest.mark.slow
