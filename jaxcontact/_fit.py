@@ -48,6 +48,7 @@ import numpy as np
 import optax
 from jax.flatten_util import ravel_pytree
 
+from ._indenter import Sphere
 from ._loading import Displacement, Force
 from ._material.prony import Prony, retardation_series
 from ._scene import Scene
@@ -303,6 +304,10 @@ class PronyFit(eqx.Module):
       `inf` in the rows of undetermined parameters.
     - `gradient`: dict with the same keys: `d(loss)/d(log param)` at the result.
     - `noise`: the noise level used for `std` [units of the data].
+    - `discretisation`: with `check_grid=True`, the RMS difference between the
+      fitted model's curve on the fit's grid and on a grid twice as fine (same
+      width) [units of the data]: the model's own discretisation error, a bias the
+      fit cannot remove; compare it with `noise`. `None` otherwise.
     """
 
     material: Prony
@@ -327,6 +332,7 @@ class PronyFit(eqx.Module):
     parameter_names: tuple
     gradient: dict
     noise: float
+    discretisation: float | None = None
 
 
 # ---------------------------------------------------------------------------------------
@@ -556,6 +562,29 @@ def _boundary_probe(ev, theta, refs, fit_poisson, times):
     return best
 
 
+def _discretisation(scene, material, model, curve):
+    """RMS difference [data units] between `curve` (the model on `scene`'s grid) and
+    the same model on a grid of twice the cells per side, same size."""
+    g = scene.grid
+    fine = eqx.tree_at(lambda sc: sc.grid, scene, type(g)(
+        shape=tuple(2 * k for k in g.shape), size=g.size, periodic=g.periodic))
+    fine_curve, _ = model(material, (fine, _operator_for(fine, _traced_directions(fine))))
+    return float(np.sqrt(np.mean((np.asarray(curve) - np.asarray(fine_curve)) ** 2)))
+
+
+def discretisation_error(fit: "PronyFit", data: IndentationData, scene_template: Scene,
+                         solve_options: dict | None = None) -> float:
+    """`PronyFit.discretisation` after the fact: the RMS difference [data units]
+    between `fit.curve` and the fitted model on a grid of twice the cells (same
+    width) for the same data and template (`solve_options` as given to the fit;
+    the fit's default scheme `"linear"` unless it says otherwise)."""
+    dtype = scene_template.grid.size.dtype
+    scene, kind, _ = _scene_for(data, scene_template, dtype)
+    options = {"scheme": "linear", **dict(solve_options or {})}
+    model = _SceneModel(kind, tuple(sorted(options.items())))
+    return _discretisation(scene, fit.material, model, fit.curve)
+
+
 def _check_int(name, value, minimum):
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
         raise TypeError(f"{name} must be an integer, got {value!r}")
@@ -591,6 +620,7 @@ def fit_prony(
     solve_options: dict | None = None,
     optimiser: str | None = None,
     lm_steps: int = 100,
+    check_grid: bool = False,
     _model: Callable | None = None,
 ) -> PronyFit:
     """Fit a Prony series `G(t) = g_inf + sum_i g_i exp(-t / tau_i)` to indentation
@@ -631,6 +661,9 @@ def fit_prony(
       model's own solver tolerance is reached).
     - `precondition`: run the optimisers in coordinates whitened by the Gauss-Newton
       Hessian at the start (`2 p` extra evaluations; usually saves many more).
+    - `check_grid`: also solve the fitted model on a grid twice as fine (one more
+      compilation and a solve 4x as large) and report the difference
+      (`PronyFit.discretisation`).
     - `noise_std`: the data's noise standard deviation [data units] for `std`;
       default: estimated from the residual.
     - `optimiser`: `"lm"` (Levenberg-Marquardt, `optimistix.LevenbergMarquardt`
@@ -925,6 +958,12 @@ def fit_prony(
     message += (f"; Gauss-Newton predicts a further {predicted:.2g} relative decrease "
                 f"of the loss {float(value):.3g} ({verdict}: the bound is {_GN_TOL:g}, "
                 f"or {floor:g} absolute)")
+    discretisation = None
+    if check_grid and _model is None and not isinstance(scene.indenter, Sphere):
+        message += "; check_grid needs a jc.Sphere indenter (a surface array is per grid)"
+    elif check_grid and _model is None:
+        discretisation = _discretisation(scene, _to_material(theta, refs, fit_poisson),
+                                         model, curve)
     material = _to_material(theta, refs, fit_poisson)
     if _model is None and dict(model.options).get("scheme") == "constant":
         # Inside the fit the material is traced and jc.solve cannot check its steps;
@@ -973,4 +1012,5 @@ def fit_prony(
         parameter_names=names,
         gradient=sorted_split(np.asarray(ravel_pytree(grad)[0])),
         noise=sigma_rel * scale_f,
+        discretisation=discretisation,
     )

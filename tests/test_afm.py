@@ -294,6 +294,7 @@ def test_fit_command_on_the_relaxation_file_and_the_radius_scaling(tmp_path, cap
         js = json.loads((d / "fmt-jpk-sr_cell1-0008_fit.json").read_text())
         assert js["mode"] == "relaxation" and js["fitted"] == "force"
         assert js["radius_m"] == radius and js["arms"] == 1
+        assert js["discretisation_rms"] > 0  # N: the 8^2 model against 16^2
         corr = np.array(js["log_parameter_correlation"], float)
         assert corr.shape == (3, 3) and np.allclose(np.diag(corr), 1)
         if js["plot"]:

@@ -477,3 +477,31 @@ def test_fit_recovers_pmma_through_the_contact_model_64x64x40():
     """The issue's scene (2 terms, 64^2 x 40 steps); its time is measured by
     benchmarks/fit.py, not asserted here."""
     check_full_model_fit(64, 40)
+
+
+def test_check_grid_reports_the_discretisation_error():
+    """`check_grid=True`: the fitted model's curve on the fit's grid against a grid
+    twice as fine, computed here independently with `jc.solve` (linear scheme, the
+    fit's default) on the 2n grid: the same RMS to 1e-8 relative. A 1-arm ramp-hold
+    at 8^2 x 10 steps (data from 16^2)."""
+    times = jnp.linspace(0.0, 2.0, 10)
+    depth = jnp.minimum(times / 0.5, 1.0) * 1e-6
+    truth = jc.Prony(1e3, jnp.array([2e3]), jnp.array([0.5]), 0.5)
+
+    def scene(n, material):
+        return jc.Scene(jc.Grid((n, n), 10e-6), jc.Sphere(5e-6), material, times,
+                        normal=jc.Displacement(depth))
+
+    force = jc.solve(scene(16, truth), scheme="linear").normal_force
+    data = jc.IndentationData(times, force=force, depth=depth)
+    fit = jc.fit_prony(data, scene(8, jc.Elastic(3e3, 0.5)), 1, check_grid=True)
+    fine = jc.solve(scene(16, fit.material), scheme="linear").normal_force
+    expected = float(np.sqrt(np.mean((fit.curve - np.asarray(fine)) ** 2)))
+    assert fit.discretisation is not None and expected > 0
+    np.testing.assert_allclose(fit.discretisation, expected, rtol=1e-8)
+    after = _fit.discretisation_error(fit, data, scene(8, jc.Elastic(3e3, 0.5)))
+    np.testing.assert_allclose(after, expected, rtol=1e-8)  # the CLI's path
+    # the data come from 16^2, so the fit on 8^2 absorbs its discretisation error:
+    # the residual is of the order of the reported bias
+    rms = float(np.sqrt(np.mean(fit.residual**2)))
+    assert rms < 2 * fit.discretisation
