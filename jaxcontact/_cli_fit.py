@@ -21,6 +21,10 @@ and the model's discretisation error (the fitted curve on a grid twice as fine;
 `--no-check-grid` skips it). Exit status: 0 on success,
 1 when a fit did not converge, 2 for bad input (the message names the bad value).
 
+Compiled programs are cached on disk (`JAXCONTACT_CACHE_DIR`, default
+`~/.cache/jaxcontact/xla`; empty: no cache), so a second run of the same sizes skips
+most of the compilation.
+
 The probe radius is not in the files: absolute moduli scale as `R^(-1/2)`; relaxation
 times and modulus ratios do not depend on it.
 """
@@ -28,6 +32,7 @@ times and modulus ratios do not depend on it.
 import argparse
 import json
 import math
+import os
 import sys
 from pathlib import Path
 
@@ -259,6 +264,15 @@ def run_fit(args) -> int:
         import jax
 
         jax.config.update("jax_enable_x64", True)
+        # A persistent compilation cache: the Levenberg-Marquardt solve through the
+        # contact model's adjoint compiles for tens of seconds; a second run of the
+        # same shapes (another file, the same --n and --samples) loads it instead.
+        cache = os.environ.get("JAXCONTACT_CACHE_DIR",
+                               os.path.join(os.path.expanduser("~"), ".cache",
+                                            "jaxcontact", "xla"))
+        if cache:
+            jax.config.update("jax_compilation_cache_dir", cache)
+            jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
         status = 0
         for path in args.files:
             result, fit, seg = _fit_one(path, args, samples, segments)

@@ -149,6 +149,9 @@ class IndentationData(eqx.Module):
 
 
 def _to_material(theta: dict, refs: dict, fit_poisson: bool) -> Prony:
+    # Fixed parameters (`fit_prony(fixed=...)`) are held in `refs["fixed"]` as log
+    # values and are not among the optimised leaves of `theta`.
+    theta = {**refs.get("fixed", {}), **theta}
     g_ref, t_ref = refs["g_ref"], refs["t_ref"]
     poisson = 0.5 * jax.nn.sigmoid(theta["poisson"]) if fit_poisson else refs["poisson"]
     return Prony(
@@ -525,6 +528,7 @@ def _boundary_probe(ev, theta, refs, fit_poisson, times):
     revived whole (one evaluation each); the best is returned."""
     value = float(ev.loss(theta)[0])
     material = _to_material(theta, refs, fit_poisson)
+    free, theta = theta, {**refs.get("fixed", {}), **theta}  # trials on all, kept: free
     g_inf, g, tau = (np.asarray(x, float) for x in (material.g_inf, material.g,
                                                     material.tau))
     g0 = float(g_inf + g.sum())
@@ -555,6 +559,9 @@ def _boundary_probe(ev, theta, refs, fit_poisson, times):
                 trials.append({**theta, "g_inf": theta["g_inf"] + shrink,
                                "g": (theta["g"] + shrink).at[i].set(inside)})
     best, best_value = None, value * (1 - 1e-3)
+    trials = [{k: t[k] for k in free} for t in trials]
+    trials = [t for t in trials if any(
+        not bool(jnp.array_equal(t[k], free[k])) for k in free)]
     for trial in trials:
         v = float(ev.loss(trial)[0])
         if np.isfinite(v) and v < best_value:
@@ -621,6 +628,7 @@ def fit_prony(
     optimiser: str | None = None,
     lm_steps: int = 100,
     check_grid: bool = False,
+    fixed: dict | None = None,
     _model: Callable | None = None,
 ) -> PronyFit:
     """Fit a Prony series `G(t) = g_inf + sum_i g_i exp(-t / tau_i)` to indentation
@@ -661,6 +669,12 @@ def fit_prony(
       model's own solver tolerance is reached).
     - `precondition`: run the optimisers in coordinates whitened by the Gauss-Newton
       Hessian at the start (`2 p` extra evaluations; usually saves many more).
+    - `fixed`: parameters held at given values, not fitted: a dict with any of
+      `"g_inf"` (a number > 0 [Pa]), `"g"` and `"tau"` (`n_terms` values > 0, [Pa]
+      and [s]); e.g. `fixed={"tau": [0.1, 10.0]}` fits the moduli of given times.
+      Their `std` is 0. (A modulus cannot be fixed at 0: the series is positive by
+      construction; fit fewer arms instead.) Poisson's ratio is fixed unless
+      `fit_poisson`.
     - `check_grid`: also solve the fitted model on a grid twice as fine (one more
       compilation and a solve 4x as large) and report the difference
       (`PronyFit.discretisation`).
@@ -715,7 +729,19 @@ def fit_prony(
     dtype = scene_template.grid.size.dtype
     if gtol is None:
         gtol = 1e-12 if jnp.finfo(dtype).bits >= 64 else 1e-6
-    n_params = 1 + 2 * n + int(bool(fit_poisson))
+    fixed_values = {}
+    for key, value in dict(fixed or {}).items():
+        if key not in ("g_inf", "g", "tau"):
+            raise ValueError(f"fixed: unknown parameter {key!r} (g_inf, g, tau; Poisson's "
+                             "ratio is fixed by default)")
+        shape = () if key == "g_inf" else (n,)
+        arr = np.asarray(value, float)
+        if arr.shape != shape or not np.all(np.isfinite(arr)) or not np.all(arr > 0):
+            raise ValueError(f"fixed[{key!r}] must be {'a number' if not shape else f'{n} numbers'}"
+                             f" > 0, got {value!r}")
+        fixed_values[key] = arr
+    n_params = 1 + 2 * n + int(bool(fit_poisson)) - sum(
+        int(np.size(v)) for v in fixed_values.values())
     if data.times.shape[0] <= n_params:
         raise ValueError(
             f"{n_params} parameters need more than {n_params} samples, got "
@@ -752,12 +778,17 @@ def fit_prony(
         "t_ref": jnp.asarray(float(data.times[-1] - data.times[0]), dtype),
         "poisson": jnp.asarray(poisson, dtype),
     }
+    if fixed_values:
+        scales = {"g_inf": refs["g_ref"], "g": refs["g_ref"], "tau": refs["t_ref"]}
+        refs["fixed"] = {k: jnp.log(jnp.asarray(v, dtype) / scales[k])
+                         for k, v in fixed_values.items()}
     ev = _Evaluator(ctx, refs, target, scale, model, bool(fit_poisson), dtype)
     if init is None:
         init = _initial_guess(ev, refs, fit_poisson, kind, data.times, target, n,
                               _initial_times(data.times, n), dtype, poisson,
                               data.depth if kind == "force" else data.force)
     theta = _to_theta(init, refs, fit_poisson, dtype)
+    theta = {k: v for k, v in theta.items() if k not in fixed_values}
 
     fd_step = 1e-3 if jnp.finfo(dtype).bits >= 64 else 3e-2
     history = []
@@ -975,17 +1006,24 @@ def fit_prony(
 
     # The covariance in the order g_inf, g_1..g_n, tau_1..tau_n (sorted by tau)
     # [, poisson]: a permutation of ravel_pytree's (alphabetical keys) layout.
-    index = _split(theta, np.arange(rows.shape[1]))
+    # Fixed parameters get rows and columns of zeros (index p: a padding slot).
+    p_free = rows.shape[1]
+    index = _split(theta, np.arange(p_free))
+    for key in fixed_values:
+        index[key] = np.full(np.shape(fixed_values[key]), p_free)
     perm = np.concatenate([np.atleast_1d(index["g_inf"]), index["g"][order],
                            index["tau"][order]]
                           + ([np.atleast_1d(index["poisson"])] if fit_poisson else [])
                           ).astype(int)
+    cov = np.pad(cov, ((0, 1), (0, 1)))
     names = (("g_inf",) + tuple(f"g_{i + 1}" for i in range(n))
              + tuple(f"tau_{i + 1}" for i in range(n))
              + (("poisson",) if fit_poisson else ()))
 
     def sorted_split(values):
         out = _split(theta, values)
+        for key in fixed_values:  # not fitted: no spread, no gradient
+            out[key] = np.zeros(np.shape(fixed_values[key]))
         out["g"], out["tau"] = out["g"][order], out["tau"][order]
         return out
 

@@ -505,3 +505,28 @@ def test_check_grid_reports_the_discretisation_error():
     # the residual is of the order of the reported bias
     rms = float(np.sqrt(np.mean(fit.residual**2)))
     assert rms < 2 * fit.discretisation
+
+
+def test_fixed_parameters_are_held_and_the_rest_fitted():
+    """`fixed=`: with the true relaxation time held, the moduli are recovered within 3
+    of their reported std (1 % noise) and the time is exactly the given one with a
+    zero std; a wrong fixed time (x2) leaves a worse fit; bad values are refused."""
+    data, template, model = ramp_hold_unload_case()
+    tau = ONE_ARM[2]
+    fit = jc.fit_prony(data, template, 1, _model=model, fixed={"tau": [tau]})
+    assert fit.converged, fit.message
+    assert float(fit.material.tau[0]) == pytest.approx(tau, rel=1e-14)
+    assert fit.std["tau"][0] == 0 and np.all(fit.covariance[-1] == 0)
+    for got, true, s in ((float(fit.material.g_inf), ONE_ARM[0], fit.std["g_inf"]),
+                         (float(fit.material.g[0]), ONE_ARM[1], fit.std["g"][0])):
+        assert abs(np.log(got / true)) < 3 * s, (got, true, s)
+    free = jc.fit_prony(data, template, 1, _model=model)
+    wrong = jc.fit_prony(data, template, 1, _model=model, fixed={"tau": [2 * tau]})
+    assert wrong.loss > 2 * free.loss
+    # the std of the free moduli shrink when the time is held (it correlates with them)
+    assert fit.std["g"][0] < free.std["g"][0]
+    for bad, match in (({"tau": [0.0]}, "must be 1 numbers > 0"),
+                       ({"g_inf": -1.0}, "must be a number > 0"),
+                       ({"nu": 0.3}, "unknown parameter")):
+        with pytest.raises(ValueError, match=match):
+            jc.fit_prony(data, template, 1, _model=model, fixed=bad)
