@@ -530,3 +530,37 @@ def test_fixed_parameters_are_held_and_the_rest_fitted():
                        ({"nu": 0.3}, "unknown parameter")):
         with pytest.raises(ValueError, match=match):
             jc.fit_prony(data, template, 1, _model=model, fixed=bad)
+
+
+def test_fit_is_unit_invariant():
+    """The same ramp-hold data in SI (m, N, Pa, s) and in um / nN / kPa (and ms) give
+    the same parameters up to the unit factors (kPa = nN / um^2), to 1e-6 relative:
+    the start, the steps and the stopping tests are dimensionless. Full contact model,
+    8^2, 1 arm, data from 16^2."""
+    times = jnp.linspace(0.0, 2.0, 10)
+    depth = jnp.minimum(times / 0.5, 1.0) * 1e-6
+    truth = jc.Prony(1e3, jnp.array([2e3]), jnp.array([0.5]), 0.5)
+
+    def scene(n, material, length, time_unit, d):
+        return jc.Scene(jc.Grid((n, n), 10e-6 * length), jc.Sphere(5e-6 * length),
+                        material, times * time_unit, normal=jc.Displacement(d))
+
+    force = np.asarray(jc.solve(scene(16, truth, 1.0, 1.0, depth),
+                                scheme="linear").normal_force)
+    fits = []
+    for length, force_unit, time_unit in ((1.0, 1.0, 1.0), (1e6, 1e9, 1e3)):
+        data = jc.IndentationData(np.asarray(times) * time_unit, force=force * force_unit,
+                                  depth=np.asarray(depth) * length)
+        placeholder = jc.Elastic(3e3 * force_unit / length**2, 0.5)
+        fits.append(jc.fit_prony(data, scene(8, placeholder, length, time_unit,
+                                             jnp.asarray(depth) * length), 1))
+    si, other = fits
+    assert si.converged and other.converged, (si.message, other.message)
+    modulus = 1e9 / 1e12  # Pa -> nN / um^2
+    np.testing.assert_allclose(float(other.material.g_inf), float(si.material.g_inf)
+                               * modulus, rtol=1e-6)
+    np.testing.assert_allclose(np.asarray(other.material.g), np.asarray(si.material.g)
+                               * modulus, rtol=1e-6)
+    np.testing.assert_allclose(np.asarray(other.material.tau),
+                               np.asarray(si.material.tau) * 1e3, rtol=1e-6)
+    np.testing.assert_allclose(other.std["tau"], si.std["tau"], rtol=1e-3)
