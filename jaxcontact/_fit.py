@@ -16,8 +16,10 @@ dimensionless and O(1) or smaller for any initial guess of the right order.
 The start (unless `init=` is given) comes from the data: one elastic run of the model
 turns every sample into an apparent modulus, and a cheap least-squares Prony fit of
 `G(t)` (or `1/J(t)` under load control) to those moduli gives the series (see
-`_initial_guess`). The optimiser is then Adam (a few steps; the best point is kept),
-then L-BFGS (`optax.scale_by_lbfgs`, the direction of `optax.lbfgs`, memory 20) with
+`_initial_guess`). The optimiser is optimistix's Levenberg-Marquardt on the residual
+(default when optimistix is installed; Jacobian by reverse mode through the contact
+solve's implicit adjoint; one compiled program), or (`optimiser="lbfgs"`) Adam (a few
+steps; the best point is kept), then L-BFGS (`optax.scale_by_lbfgs`, the direction of `optax.lbfgs`, memory 20) with
 an Armijo backtracking line search driven from Python. Every model evaluation goes
 through ONE compiled value-and-gradient function (the line search, the initial guess
 and the sensitivities reuse it), so a fit compiles the model once, and further fits of
@@ -242,7 +244,7 @@ class _Evaluator:
 
     def __init__(self, ctx, refs, target, scale, model, fit_poisson, dtype):
         self.args = (ctx, refs, target, scale, model, fit_poisson)
-        self.scale = float(scale)
+        self.scale = np.asarray(scale, float)  # () or (nt,) with weights
         self.zeros = jnp.zeros(target.shape, dtype)
         self.calls = 0
 
@@ -629,6 +631,7 @@ def fit_prony(
     lm_steps: int = 100,
     check_grid: bool = False,
     fixed: dict | None = None,
+    weights=None,
     _model: Callable | None = None,
 ) -> PronyFit:
     """Fit a Prony series `G(t) = g_inf + sum_i g_i exp(-t / tau_i)` to indentation
@@ -675,6 +678,11 @@ def fit_prony(
       Their `std` is 0. (A modulus cannot be fixed at 0: the series is positive by
       construction; fit fewer arms instead.) Poisson's ratio is fixed unless
       `fit_poisson`.
+    - `weights`: `(nt,)` positive weights of the samples (e.g. `sqrt(count)` for bin
+      means of `count` raw samples: the inverse of each sample's noise); normalised to
+      a mean square of 1. Default: equal. The loss is then
+      `mean((w (curve - target) / rms(target))^2)`, `noise` (and `noise_std`) is the
+      noise of a sample of weight 1.
     - `check_grid`: also solve the fitted model on a grid twice as fine (one more
       compilation and a solve 4x as large) and report the difference
       (`PronyFit.discretisation`).
@@ -748,8 +756,18 @@ def fit_prony(
             f"{data.times.shape[0]} (use more samples or fewer terms)"
         )
     scene, kind, target = _scene_for(data, scene_template, dtype)
-    scale = jnp.sqrt(jnp.mean(target**2))
-    if not float(scale) > 0:
+    rms_target = jnp.sqrt(jnp.mean(target**2))
+    if weights is not None:
+        w = _series("weights", weights).astype(float)
+        if w.shape != target.shape or not np.all(w > 0):
+            raise ValueError(f"weights must be {target.shape[0]} numbers > 0 (one per "
+                             f"time), got shape {w.shape}, min {w.min()!r}")
+        w = w / np.sqrt(np.mean(w**2))  # mean w^2 = 1: the loss keeps its scale
+    else:
+        w = np.ones(target.shape)
+    # Residual k is (curve - target)_k w_k / rms(target): `scale` holds rms / w.
+    scale = rms_target / jnp.asarray(w, dtype)
+    if not float(rms_target) > 0:
         raise ValueError(f"data.{kind} is zero at every time: nothing to fit")
     if poisson is None:
         poisson = float(scene_template.material.poisson)
@@ -955,9 +973,10 @@ def fit_prony(
     nt = target.shape[0]
     rows = ev.jacobian(theta, fd_step)
     residual = np.asarray(curve) - np.asarray(target)
-    scale_f = float(scale)
+    scale_f = float(rms_target)
+    rel = residual / np.asarray(scale, float)  # weighted, relative
     if noise_std is None:
-        sigma_rel = math.sqrt(float(np.sum((residual / scale_f) ** 2)) / (nt - n_params))
+        sigma_rel = math.sqrt(float(np.sum(rel**2)) / (nt - n_params))
     else:
         sigma_rel = float(noise_std) / scale_f
     if np.all(np.isfinite(rows)):
@@ -981,7 +1000,7 @@ def fit_prony(
     # At an exact fit (noiseless data) the residual is round-off and its relative
     # decrease means nothing: an absolute floor on the predicted decrease of the loss
     # (mean squared relative residual) covers it.
-    predicted = _predicted_decrease(rows, residual / scale_f)
+    predicted = _predicted_decrease(rows, rel)
     floor = 1e-18 if jnp.finfo(dtype).bits >= 64 else 1e-10
     small = predicted < _GN_TOL or predicted * float(value) < floor
     converged = bool(small) and bool(np.all(np.asarray(ok))) and probe is None

@@ -564,3 +564,36 @@ def test_fit_is_unit_invariant():
     np.testing.assert_allclose(np.asarray(other.material.tau),
                                np.asarray(si.material.tau) * 1e3, rtol=1e-6)
     np.testing.assert_allclose(other.std["tau"], si.std["tau"], rtol=1e-3)
+
+
+def test_weights():
+    """Equal weights change nothing (they are normalised); a tiny weight on an outlier
+    removes it: 1 % noise plus one sample 30 % off; unweighted, some parameter lands
+    beyond 3 reported std of the truth, weighted (1e-6 on the outlier) all within
+    (std from the known noise level)."""
+    data, template, model = ramp_hold_unload_case()
+    plain = jc.fit_prony(data, template, 1, _model=model)
+    same = jc.fit_prony(data, template, 1, _model=model,
+                        weights=np.full(data.times.shape, 7.0))
+    np.testing.assert_allclose(params(same.material), params(plain.material), rtol=1e-9)
+    force = data.force.copy()
+    k = 10  # in the hold
+    force[k] *= 1.3
+    bad = jc.IndentationData(data.times, force=force, depth=data.depth)
+    truth = np.array(ONE_ARM)
+
+    def z(fit):
+        std = np.concatenate([[fit.std["g_inf"]], fit.std["g"], fit.std["tau"]])
+        return np.abs(np.log(params(fit.material) / truth)) / std
+
+    sigma = 0.01 * float(np.max(data.force))  # the noise the case adds: given, so
+    # that the outlier cannot hide by inflating the estimated noise
+    unweighted = jc.fit_prony(bad, template, 1, _model=model, noise_std=sigma)
+    w = np.ones(data.times.shape)
+    w[k] = 1e-6
+    weighted = jc.fit_prony(bad, template, 1, _model=model, weights=w, noise_std=sigma)
+    assert weighted.converged, weighted.message
+    assert np.max(z(unweighted)) > 3 and np.all(z(weighted) < 3), (
+        z(unweighted), z(weighted))
+    with pytest.raises(ValueError, match="weights must be"):
+        jc.fit_prony(bad, template, 1, _model=model, weights=-w)
