@@ -4,6 +4,7 @@ A rigid indenter against a linear (visco)elastic half-space, by influence
 coefficients, DC-FFT and conjugate-gradient contact solvers.
 """
 
+from ._afm import AFMCurve as AFMCurve, read_afm as read_afm
 from ._analytic import Hertz as Hertz, LeeRadok as LeeRadok
 from ._fit import (
     fit_prony as fit_prony,

@@ -2,15 +2,17 @@
 
     jaxcontact presets                                   list the built-in scenes
     jaxcontact run PRESET_OR_SCENE_FILE --out DIR [--n N] [--steps K] [--float32]
-                   [--param KEY=VALUE ...]
+                   [--param KEY=VALUE ...] [--overwrite]
 
 `run hertz` solves the elastic Hertz indentation and prints it beside Hertz theory.
 Any other preset (`jc.presets`) or a TOML scene file (schema: README, "Scene files")
 is solved over its time axis with `jc.solve`; the result goes to `DIR/NAME.npz` (every
 field of the `jc.Solution`, the grid, and a JSON `metadata` string: preset or file,
-parameters, units, versions) and to PNG plots. Exit status: 0 on success, 1 when a
-time step did not converge, 2 for bad input (unknown preset, malformed TOML, bad
-values).
+parameters, units, versions) and to PNG plots. `DIR` is created and checked before the
+solve; outputs already in it are replaced only with `--overwrite`. Exit status: 0 on
+success, 1 when a time step did not converge, 2 for bad input (unknown preset,
+malformed TOML, bad values, an output folder that cannot be written, existing outputs
+without `--overwrite`).
 """
 
 import argparse
@@ -100,6 +102,89 @@ def _setup_jax(float32: bool):
     return jnp.float32 if float32 else jnp.float64
 
 
+# ---- Output folder and names ---------------------------------------------------------
+
+
+def _check_stem(stem) -> str:
+    """An output name (a scene file's `name`): one plain file-name component.
+
+    Outputs are written as `OUT/STEM.npz` and `OUT/STEM_*.png`; a name with a path
+    separator, `..` or a NUL would put them elsewhere (or fail after the solve).
+    """
+    if not isinstance(stem, str):
+        raise InputError(f"name {stem!r} must be a string (the output file stem)")
+    bad = (
+        not stem
+        or stem in (".", "..")
+        or "/" in stem
+        or "\\" in stem
+        or "\0" in stem
+        or Path(stem).name != stem
+    )
+    if bad:
+        raise InputError(
+            f"name {stem!r} is not a plain file name: it must be non-empty and hold no "
+            "path separator ('/' or '\\') and not be '.' or '..' (outputs stay inside "
+            "--out)"
+        )
+    return stem
+
+
+def _prepare_out(out: Path, names, overwrite: bool) -> Path:
+    """Create the output folder and check that `names` can be written in it.
+
+    Run before the solve, so that a bad `--out` costs nothing: an `--out` that is a
+    file, lies under a file, or cannot be created or written raises `InputError`
+    (exit status 2) naming the path; so do existing outputs unless `overwrite`.
+    """
+    import os
+    import tempfile
+
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out {str(out)!r} exists and is not a directory")
+    parent = out
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    if not parent.is_dir():
+        raise InputError(
+            f"--out {str(out)!r}: {str(parent)!r} is a file, not a directory"
+        )
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        # os.access is no proof (root, read-only mounts): write a probe file.
+        fd, probe = tempfile.mkstemp(prefix=".jaxcontact-probe-", dir=out)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise InputError(
+            f"--out {str(out)!r} is not a writable directory "
+            f"({exc.strerror or exc})"
+        ) from None
+    for name in names:
+        if (out / name).resolve().parent != out.resolve():
+            raise InputError(f"output {name!r} would be written outside --out {out}")
+    clash = [name for name in names if (out / name).exists()]
+    folders = [name for name in clash if (out / name).is_dir()]
+    if folders:
+        raise InputError(
+            f"--out {str(out)!r}: {', '.join(folders)} is a directory, not an output "
+            "file"
+        )
+    if clash and not overwrite:
+        raise InputError(
+            f"--out {str(out)!r} already holds {', '.join(clash)}: pass --overwrite to "
+            "replace them, or choose another --out"
+        )
+    return out
+
+
+def _scene_outputs(stem: str) -> list:
+    """Every file `_run_scene` may write for `stem` (plots only when they apply)."""
+    return [f"{stem}.npz"] + [
+        f"{stem}_{kind}.png" for kind in ("profiles", "history", "stick")
+    ]
+
+
 # ---- Hertz: the main job, with its comparison table ----------------------------------
 
 
@@ -116,6 +201,7 @@ def _hertz(args, dtype) -> int:
         raise InputError(
             f"--steps: the hertz example is one load step, got {args.steps}"
         )
+    out = _prepare_out(Path(args.out), ["hertz.npz", "hertz.png"], args.overwrite)
     scene = jc.presets.hertz(n=n, dtype=dtype)
     grid, material = scene.grid, scene.material
     radius = float(scene.indenter.radius)
@@ -156,8 +242,6 @@ def _hertz(args, dtype) -> int:
         f"residual={float(sol.residual):.1e} time={elapsed:.2f} s (incl. compilation)"
     )
 
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     meta = dict(
         scene="hertz",
         preset="hertz",
@@ -237,11 +321,11 @@ def _scene_from_args(args, dtype):
         try:
             spec = jc.presets.read_toml(path)
             scene, options = jc.presets.from_spec(
-                spec, n=args.n, steps=args.steps, dtype=dtype
+                spec, n=args.n, steps=args.steps, dtype=dtype, base=path.parent
             )
         except (ValueError, TypeError) as exc:
             raise InputError(f"scene file {target}: {exc}") from exc
-        stem = str(spec.get("name", path.stem))
+        stem = _check_stem(spec.get("name", path.stem))
         meta = {
             "scene_file": str(path),
             "scene": spec,
@@ -325,6 +409,7 @@ def _run_scene(args, dtype) -> int:
     import jaxcontact as jc
 
     stem, scene, options, meta = _scene_from_args(args, dtype)
+    out = _prepare_out(Path(args.out), _scene_outputs(stem), args.overwrite)
     info = _describe(scene)
     nt = info["nt"]
     precision = np.dtype(dtype).name
@@ -340,9 +425,12 @@ def _run_scene(args, dtype) -> int:
         flush=True,
     )
     start = time.perf_counter()
+    from ._validate import clear_runtime_errors
+
     try:
-        sol = jc.solve(scene, progress=nt > 1, throw=False, **options)
-        sol = jax.tree_util.tree_map(np.asarray, sol)
+        with clear_runtime_errors():  # a failed run-time check: exit 2, message first
+            sol = jc.solve(scene, progress=nt > 1, throw=False, **options)
+            sol = jax.tree_util.tree_map(np.asarray, sol)
     except (ValueError, TypeError) as exc:
         raise InputError(f"{stem}: {exc}") from exc
     elapsed = time.perf_counter() - start
@@ -353,8 +441,6 @@ def _run_scene(args, dtype) -> int:
         f"max residual {float(sol.residual.max()):.1e}"
     )
 
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     meta.update(
         scene_summary=info,
         dtype=precision,
@@ -478,7 +564,16 @@ def _parser():
         metavar="PRESET_OR_SCENE_FILE",
         help="a preset name (see `jaxcontact presets`) or a .toml scene file",
     )
-    run.add_argument("--out", default="jaxcontact-out", help="output directory")
+    run.add_argument(
+        "--out",
+        default="jaxcontact-out",
+        help="output directory (created if missing; checked before the solve)",
+    )
+    run.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace outputs of the same name already in --out (default: refuse)",
+    )
     run.add_argument(
         "--n",
         type=int,
@@ -503,6 +598,9 @@ def _parser():
     )
     sub.add_parser("presets", help="list the built-in presets")
     sub.add_parser("examples", help="same as `presets`")
+    from ._cli_fit import add_parser as add_fit_parser
+
+    add_fit_parser(sub)
     return parser
 
 
@@ -513,6 +611,10 @@ def main(argv=None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # argparse: 2 for bad usage, 0 for --help
         return int(exc.code or 0)
+    if args.command == "fit":
+        from ._cli_fit import run_fit
+
+        return run_fit(args)
     try:
         if args.command in ("presets", "examples"):
             from . import presets
@@ -530,6 +632,10 @@ def main(argv=None) -> int:
         return _run_scene(args, dtype)
     except InputError as exc:
         print(f"jaxcontact: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # a file that cannot be read or written: name it
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"jaxcontact: error: {where}{exc.strerror or exc}", file=sys.stderr)
         return 2
 
 

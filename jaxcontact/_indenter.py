@@ -54,8 +54,13 @@ class Surface(AbstractIndenter):
 
     **Arguments:**
 
-    - `heights`: `(nx, ny)` array of initial gaps [length] (any offset: only
-      differences matter). Must be finite.
+    - `heights`: `(nx, ny)` array of initial gaps [length] (any offset under load
+      control; under displacement control the approach counts from height 0, the gap
+      being `heights - delta_z + u_z`). Must be finite.
+
+    A `jc.Scene` (and `jc.solve_normal`) warns `jc.EdgeContactWarning` when the
+    surface's estimated contact reaches the edge of a non-periodic grid. Scene files
+    read one from a file: `[indenter] type = "surface"`, `file = "heights.npy"`.
     """
 
     heights: Float[Array, "nx ny"]

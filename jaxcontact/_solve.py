@@ -360,5 +360,11 @@ def solve(
         progress = None
     elif progress is not None and not callable(progress):
         raise TypeError(f"progress must be None, a bool or a callable, got {progress!r}")
-    return _solve(scene, operator, controls, solver, adjoint, throw, history, scheme,
-                  progress)
+    # A failed run-time check (traced bad input, or a step that did not converge with
+    # `throw`) raises a ValueError whose first line is its message.
+    with _validate.clear_runtime_errors():
+        sol = _solve(scene, operator, controls, solver, adjoint, throw, history, scheme,
+                     progress)
+        if not _validate.is_traced(sol):
+            jax.block_until_ready(sol)
+    return sol

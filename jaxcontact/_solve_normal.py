@@ -7,9 +7,12 @@ from jaxtyping import Array, Bool, Float, Int
 
 from . import _validate
 from ._grid import Grid
-from ._scene import expected_contact_radius, warn_if_too_large
+from ._scene import (
+    _check_finite_in_dtype, expected_contact_radius, expected_surface_contact,
+    warn_if_surface_too_large, warn_if_too_large,
+)
 from ._indenter import AbstractIndenter, as_indenter
-from ._material.base import AbstractMaterial
+from ._material.base import AbstractMaterial, check_in_dtype
 from ._loading import Displacement, Force
 from ._operator import HalfSpace
 from ._solution import edge_ring
@@ -111,7 +114,9 @@ def solve_normal(
 
     **Warns:** `jc.EdgeContactWarning` when the indenter is a `jc.Sphere` whose Hertz
     contact radius (or `sqrt(R delta)`) does not fit inside the grid less its outer ring
-    of cells; `NormalSolution.edge_contact` flags the solved contact exactly.
+    of cells, or a `jc.Surface` whose estimated contact (`jc.Scene`'s, a bearing-area
+    estimate) reaches the outer ring of a non-periodic grid or covers it;
+    `NormalSolution.edge_contact` flags the solved contact exactly.
 
     **Returns:** a `jc.NormalSolution` in the grid's dtype (the solve's, as in
     `jc.solve`: a float64 indenter, material or load on a float32 grid is cast). The
@@ -146,12 +151,20 @@ def solve_normal(
     if target.shape != ():
         raise ValueError(f"force/approach must be a scalar, got shape {target.shape}")
     if not _validate.is_traced((target, material, grid.size)):
+        # As in `jc.Scene`: checked in the dtype the solve uses (the grid's).
+        check_in_dtype(material, grid.size.dtype, 0.0)
+        _check_finite_in_dtype("force" if load_control else "approach", target,
+                               grid.size.dtype)
         program = Force(target) if load_control else Displacement(target)
         times = jnp.zeros((1,), dtype=target.dtype)  # one instantaneous step: J(0)
         estimate = expected_contact_radius(
             indenter, grid, material, times, program, np.asarray(target).reshape(1)
         )
         warn_if_too_large(indenter, grid, estimate)
+        contact = expected_surface_contact(
+            indenter, grid, material, times, program, np.asarray(target).reshape(1)
+        )
+        warn_if_surface_too_large(grid, contact)
     # The grid's dtype is the solve's, as in `jc.solve` (a float64 indenter or material
     # on a float32 grid is cast).
     dtype = grid.size.dtype

@@ -6,10 +6,54 @@ inspected in Python, so they are checked with `eqx.error_if`, which raises at ru
 time (see `EQX_ON_ERROR`).
 """
 
+import contextlib
+import re
+
 import jax
 import jax.numpy as jnp
 import numpy as np
 import equinox as eqx
+
+
+_RUNTIME_MESSAGE = re.compile(r"EquinoxRuntimeError: (.+)")
+
+
+def runtime_error_message(exc: BaseException) -> str | None:
+    """The message of a failed `eqx.error_if` check carried by `exc`, or `None`.
+
+    What a user sees of a traced check depends on the `jit` around it (measured with
+    jax 0.10.2, equinox 0.13.8): under `jax.jit` a `JaxRuntimeError` whose first line
+    is "INTERNAL: CpuCallback error calling callback: Traceback ...", the message on a
+    line "_EquinoxRuntimeError: MESSAGE" after ~50 lines of stack; under
+    `eqx.filter_jit` (and so `jc.solve` called directly) an `EquinoxRuntimeError` whose
+    first line is "Above is the stack outside of JIT...", the message on the line
+    "equinox.EquinoxRuntimeError: MESSAGE". Both carry the message after the text
+    "EquinoxRuntimeError: "; this finds it.
+    """
+    match = _RUNTIME_MESSAGE.search(str(exc))
+    return None if match is None else match.group(1).strip()
+
+
+@contextlib.contextmanager
+def clear_runtime_errors():
+    """Re-raise a failed run-time check (`eqx.error_if`) as a `ValueError` whose first
+    line is its message: `with clear_runtime_errors(): out = jitted(...)`.
+
+    JAX cannot put the message first itself (it formats the callback's stack before
+    it), so the boundary that runs the compiled program catches and re-raises. Other
+    exceptions pass through unchanged. (`EQX_ON_ERROR=nan` turns the checks into NaN
+    outputs instead; `EQX_ON_ERROR=breakpoint` opens a debugger.)
+    """
+    try:
+        yield
+    except Exception as exc:
+        message = runtime_error_message(exc)
+        if message is None:
+            raise
+        raise ValueError(
+            f"{message}\n(a run-time check of jaxcontact, eqx.error_if: a traced input "
+            "or a step that did not converge)"
+        ) from None
 
 
 def is_traced(x) -> bool:

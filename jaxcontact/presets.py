@@ -28,8 +28,11 @@ files").
     when you cut `steps`, cut `duration` too (e.g. ratio 10 needs `dt < 0.12 tau`).
 """
 
+import dataclasses
 import inspect
 import tomllib
+import warnings
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -37,13 +40,14 @@ import numpy as np
 
 from ._analytic import Hertz
 from ._grid import Grid
-from ._indenter import Sphere
+from ._indenter import Sphere, Surface
 from ._loading import Displacement, Force
 from ._material.elastic import Elastic
 from ._material.maxwell import Maxwell
 from ._material.prony import Prony
 from ._material.zener import Zener
 from ._scene import Scene
+from ._validate import EdgeContactWarning
 
 
 # ---- The paper's parameters, converted to true shear moduli (SI) ---------------------
@@ -150,6 +154,14 @@ def _cast(scene: Scene, dtype) -> Scene:
             return leaf.astype(dtype)
         return leaf
 
+    # Rebuilt on the cast grid first, so that the scene's checks run in the dtype the
+    # solve will use, on the values as given (times that collapse, moduli out of
+    # range: `jc.Scene`); its warnings were given when the scene was first built.
+    fields = {f.name: getattr(scene, f.name) for f in dataclasses.fields(Scene)}
+    fields["grid"] = jax.tree_util.tree_map(cast, scene.grid)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", EdgeContactWarning)
+        Scene(**fields)
     return jax.tree_util.tree_map(cast, scene)
 
 
@@ -638,6 +650,22 @@ def _keys(section, table, required, optional=()):
         raise ValueError(f"[{section}] is missing {missing}")
 
 
+def _floats(where, value):
+    """A TOML number or (nested) list of numbers as a float array (ValueError naming
+    `where` and the value otherwise: strings, booleans, ragged lists)."""
+    def bad(v):
+        if isinstance(v, list):
+            return any(bad(x) for x in v)
+        return isinstance(v, bool) or not isinstance(v, int | float)
+
+    if bad(value):
+        raise ValueError(f"{where} must be a number or a list of numbers, got {value!r}")
+    try:
+        return np.asarray(value, dtype=float)
+    except ValueError:  # ragged
+        raise ValueError(f"{where} must be a rectangular list, got {value!r}") from None
+
+
 def _program(section, table, times):
     """A `Force` or `Displacement` from `{force = ...}` or `{displacement = ...}`."""
     kinds = [k for k in ("force", "displacement") if k in table]
@@ -650,8 +678,8 @@ def _program(section, table, times):
     value = table[kind]
     if isinstance(value, dict):  # piecewise-linear {t = [...], value = [...]}
         _keys(f"{section}.{kind}", value, ("t", "value"))
-        t = np.asarray(value["t"], dtype=float)
-        v = np.asarray(value["value"], dtype=float)
+        t = _floats(f"[{section}] {kind}.t", value["t"])
+        v = _floats(f"[{section}] {kind}.value", value["value"])
         if t.ndim != 1 or t.shape != v.shape or t.size < 1:
             raise ValueError(
                 f"[{section}] {kind}: t and value must be lists of equal length, got "
@@ -665,11 +693,11 @@ def _program(section, table, times):
     elif isinstance(value, (int, float)) and not isinstance(value, bool):
         values = float(value)
     elif isinstance(value, list):
-        values = np.asarray(value, dtype=float)
+        values = _floats(f"[{section}] {kind}", value)
         if values.shape != (len(times),):
             raise ValueError(
                 f"[{section}] {kind}: a list needs one value per time point "
-                f"({len(times)}), got {len(value)}"
+                f"({len(times)}), got {value!r}"
             )
     else:
         raise ValueError(
@@ -679,12 +707,84 @@ def _program(section, table, times):
     return Force(values) if kind == "force" else Displacement(values)
 
 
+def _heights_file(path: Path) -> np.ndarray:
+    """An `(nx, ny)` height field [length] from `.npy` (NumPy) or a text table (`.txt`,
+    `.csv`, `.dat`: rows along x, columns along y; commas or whitespace)."""
+    if not path.is_file():
+        raise ValueError(f"[indenter] file {str(path)!r} does not exist")
+    suffix = path.suffix.lower()
+    try:
+        if suffix == ".npy":
+            heights = np.load(path, allow_pickle=False)
+        elif suffix in (".txt", ".csv", ".dat"):
+            heights = np.loadtxt(path, delimiter="," if suffix == ".csv" else None,
+                                 ndmin=2)
+        else:
+            raise ValueError(
+                f"[indenter] file {str(path)!r}: expected .npy, .txt, .csv or .dat, "
+                f"got {suffix!r}"
+            )
+    except (OSError, ValueError) as exc:
+        if str(exc).startswith("[indenter]"):
+            raise
+        raise ValueError(f"[indenter] file {str(path)!r} cannot be read: {exc}") from None
+    if heights.dtype.kind not in "iuf":
+        raise ValueError(
+            f"[indenter] file {str(path)!r} must hold real numbers, got dtype "
+            f"{heights.dtype}"
+        )
+    return np.asarray(heights, dtype=float)
+
+
+def _indenter(table, grid, base, n):
+    """`[indenter]`: `type = "sphere"` with `radius` (and optional `centre`), or
+    `type = "surface"` with `file` (a height field, relative to the scene file) and
+    optional `scale` (multiplies the file's values: e.g. 1e-6 for micrometres)."""
+    kind = table.get("type")
+    if kind == "sphere":
+        _keys("indenter", table, ("type", "radius"), ("centre",))
+        centre = table.get("centre", (0.0, 0.0))
+        if not isinstance(centre, list | tuple) or len(centre) != 2:
+            raise ValueError(f"[indenter] centre must be [x, y], got {centre!r}")
+        return Sphere(table["radius"], centre=np.asarray(centre, dtype=float))
+    if kind == "surface":
+        _keys("indenter", table, ("type", "file"), ("scale",))
+        if not isinstance(table["file"], str):
+            raise ValueError(f"[indenter] file must be a path, got {table['file']!r}")
+        path = Path(table["file"])
+        if not path.is_absolute():
+            path = Path(base) / path
+        heights = _heights_file(path)
+        scale = table.get("scale", 1.0)
+        if isinstance(scale, bool) or not isinstance(scale, int | float):
+            raise ValueError(f"[indenter] scale must be a number, got {scale!r}")
+        if n is not None and heights.shape != grid.shape:
+            raise ValueError(
+                f"--n / n={n}: a surface file is not resampled; {str(path)!r} has shape "
+                f"{heights.shape}"
+            )
+        if heights.shape != grid.shape:
+            raise ValueError(
+                f"[indenter] file {str(path)!r} has shape {heights.shape}, the [grid] "
+                f"shape is {grid.shape}"
+            )
+        return Surface(heights * float(scale))
+    raise ValueError(f'[indenter] type must be "sphere" or "surface", got {kind!r}')
+
+
 def from_spec(
-    spec: dict, *, n: int | None = None, steps: int | None = None, dtype=None
+    spec: dict,
+    *,
+    n: int | None = None,
+    steps: int | None = None,
+    dtype=None,
+    base=".",
 ) -> tuple[Scene, dict]:
     """Build `(scene, solve_options)` from a scene-file dict (see `read_toml` and the
     README section "Scene files"). `n` overrides the grid shape with `(n, n)`; `steps`
-    the number of time points (only with `[time] end = ...`)."""
+    the number of time points (only with `[time] end = ...`); `base` is the folder that
+    relative file names (a surface's `file`) are read from (`from_toml`: the scene
+    file's folder)."""
     if not isinstance(spec, dict):
         raise TypeError(f"spec must be a dict, got {spec!r}")
     unknown = sorted(set(spec) - set(_SECTIONS))
@@ -696,15 +796,13 @@ def from_spec(
     grid_t = _table(spec, "grid")
     _keys("grid", grid_t, ("shape", "size"), ("periodic",))
     shape = grid_t["shape"]
+    if not (isinstance(shape, list) and len(shape) == 2):
+        raise ValueError(f"[grid] shape must be [nx, ny], got {shape!r}")
     if n is not None:
         shape = (_check_int("n", n, 2),) * 2
     grid = Grid(shape, grid_t["size"], periodic=grid_t.get("periodic", False))
 
-    ind = _table(spec, "indenter")
-    _keys("indenter", ind, ("type", "radius"))
-    if ind["type"] != "sphere":
-        raise ValueError(f'[indenter] type must be "sphere", got {ind["type"]!r}')
-    indenter = Sphere(ind["radius"])
+    indenter = _indenter(_table(spec, "indenter"), grid, base, n)
 
     mat = dict(_table(spec, "material"))
     kind = mat.pop("type", None)
@@ -716,7 +814,7 @@ def from_spec(
     _keys("material", mat, required, optional)
     material = ctor(
         **{
-            k: np.asarray(v, dtype=float) if isinstance(v, list) else v
+            k: _floats(f"[material] {k}", v) if isinstance(v, list) else v
             for k, v in mat.items()
         }
     )
@@ -726,7 +824,7 @@ def from_spec(
         _keys("time", time_t, ("times",))
         if steps is not None:
             raise ValueError("steps cannot override an explicit [time] times list")
-        times = np.asarray(time_t["times"], dtype=float)
+        times = _floats("[time] times", time_t["times"])
     else:
         _keys("time", time_t, ("end", "steps"))
         nt = _check_int("steps", time_t["steps"] if steps is None else steps, 1)
@@ -766,4 +864,6 @@ def from_toml(
 ) -> tuple[Scene, dict]:
     """`(scene, solve_options)` from a TOML scene file; solve with
     `jc.solve(scene, **solve_options)`."""
-    return from_spec(read_toml(path), n=n, steps=steps, dtype=dtype)
+    return from_spec(
+        read_toml(path), n=n, steps=steps, dtype=dtype, base=Path(path).parent
+    )

@@ -8,6 +8,7 @@ a 16 x 16 grid.
 """
 
 import re
+import warnings
 
 import equinox as eqx
 import jax
@@ -413,13 +414,15 @@ class TestEdgeOfDomain:
                  normal=jc.Force(self.hertz_force(1.5e-3)))
 
     def test_solution_flag_per_step(self):
-        # A rough surface (no estimate possible): the flag comes from the solve. A load
-        # ramp whose last step spreads the contact to the edge of a flat-ish surface.
+        # A surface (warned by its bearing-area estimate) carries the exact flag from
+        # the solve. A load ramp whose last step spreads the contact to the edge of a
+        # flat-ish surface.
         x, y = self.GRID16.coordinates()
         heights = x**2 + y**2  # a flat paraboloid, R = 0.5 m
         loads = np.array([1e-6, 1e-3, 1e1])
-        sc = jc.Scene(self.GRID16, heights, jc.Elastic(self.G, self.NU),
-                      jnp.arange(3.0), normal=jc.Force(loads))
+        with pytest.warns(jc.EdgeContactWarning, match="contact of the surface indenter"):
+            sc = jc.Scene(self.GRID16, heights, jc.Elastic(self.G, self.NU),
+                          jnp.arange(3.0), normal=jc.Force(loads))
         sol = jc.solve(sc)
         assert bool(jnp.all(sol.converged))
         np.testing.assert_array_equal(np.asarray(sol.edge_contact), [False, False, True])
@@ -458,3 +461,228 @@ class TestHertzAndHalfSpace:
     def test_half_space_needs_a_grid(self):
         with pytest.raises(TypeError, match=r"grid must be a jc.Grid.*\(8, 8\)"):
             jc.HalfSpace((8, 8))
+
+
+# ---- Issue 31: traced checks, the solve's dtype, tau round-off, surfaces -------------
+
+
+class TestTracedChecksFire:
+    """Under `jax.jit` the constructors cannot see values; the checks must still fire
+    (`eqx.error_if`) when the compiled solve runs. Before: a traced tension and traced
+    repeated or unsorted times were solved silently."""
+
+    @staticmethod
+    def approach(times, w):
+        sc = jc.Scene(GRID, jc.Sphere(1.0), ELASTIC, times, jc.Force(w))
+        return jc.solve(sc).approach[-1]
+
+    def test_traced_negative_normal_force(self):
+        fn = jax.jit(self.approach)
+        runtime_error(lambda: fn(TIMES, -0.01), "normal force must be finite and >= 0")
+        assert float(fn(TIMES, 0.01)) > 0  # the same program, a valid load
+
+    def test_traced_negative_force_program(self):
+        # A callable program: only its traced output can be checked (in the solve).
+        def approach(w):
+            program = jc.Force(lambda t: w * (t - 0.5))
+            sc = jc.Scene(GRID, jc.Sphere(1.0), ELASTIC, TIMES, program)
+            return jc.solve(sc).approach[-1]
+
+        runtime_error(lambda: jax.jit(approach)(0.01),
+                      "normal force must be finite and >= 0 at every time")
+
+    @pytest.mark.parametrize("times", [[0.0, 1.0, 1.0], [0.0, 2.0, 1.0]])
+    def test_traced_repeated_or_unsorted_times(self, times):
+        fn = jax.jit(self.approach)
+        runtime_error(lambda: fn(jnp.asarray(times), 0.01),
+                      "times must be strictly increasing")
+
+    def test_a_scene_changed_after_construction_is_checked_by_the_solve(self):
+        # eqx.tree_at skips the constructor: the solve's own check fires.
+        sc = scene()
+        sc = eqx.tree_at(lambda s: s.normal.value, sc, jnp.asarray(-0.01))
+        runtime_error(lambda: jc.solve(sc), "normal force must be finite and >= 0")
+        sc = eqx.tree_at(lambda s: s.times, scene(), jnp.asarray([0.0, 1.0, 0.5]))
+        runtime_error(lambda: jc.solve(sc), "times must be strictly increasing")
+
+
+class TestSolveDtype:
+    """Values valid in float64 but not in the float32 the solve uses (a float32 grid):
+    checked after the cast (before: checked before it, then silently wrong)."""
+
+    GRID32 = jc.Grid((8, 8), jnp.float32(1.0))
+
+    def scene32(self, **kwargs):
+        base = dict(grid=self.GRID32, indenter=jc.Sphere(1.0), material=ELASTIC,
+                    times=TIMES, normal=jc.Force(0.01))
+        return jc.Scene(**{**base, **kwargs})
+
+    def test_times_that_collapse_in_float32(self):
+        # The creep came out 13 % off: float32's spacing near 1e5 is 0.0078.
+        times = 1e5 + jnp.linspace(0.0, 0.02, 5)
+        raises(lambda: self.scene32(times=times), ValueError,
+               "times are not strictly increasing in float32", "100000.02")
+        scene(times=times)  # float64 grid: fine
+
+    def test_times_whose_steps_round_in_float32(self):
+        times = 1e5 + jnp.linspace(0.0, 0.2, 5)  # steps 0.05 -> 0.0547 / 0.0469
+        raises(lambda: self.scene32(times=times), ValueError,
+               "times lose precision in float32", "off, more than 1%")
+        self.scene32(times=jnp.linspace(0.0, 1.0, 2001))  # 2000 steps from 0: fine
+
+    @pytest.mark.parametrize("modulus, shown", [(1e38, "J(0) = 1e-38"),
+                                                (1e-30, "J(0) = 1e+30")])
+    def test_moduli_out_of_float32_range(self, modulus, shown):
+        # Before: jc.Elastic(1e38, 0.3) on a float32 grid gave a NaN approach with
+        # converged=True.
+        raises(lambda: self.scene32(material=jc.Elastic(modulus, 0.3)), ValueError,
+               shown, "float32")
+        if modulus > 1:
+            scene(material=jc.Elastic(modulus, 0.3))  # float64: within range
+
+    def test_modulus_that_overflows_float32(self):
+        raises(lambda: self.scene32(material=jc.Elastic(1e39, 0.3)), ValueError,
+               "shear_modulus=1e+39 overflows in float32")
+
+    def test_relaxation_times_equal_in_float32(self):
+        mat = jc.Prony(1.0, [0.5, 0.5], [1.0, 1.0000001], 0.3)  # distinct in float64
+        raises(lambda: self.scene32(material=mat), ValueError,
+               "material in float32", "tau must be pairwise distinct")
+
+    def test_load_that_overflows_float32(self):
+        raises(lambda: self.scene32(normal=jc.Force(1e39)), ValueError,
+               "normal force 1e+39 overflows in float32")
+        raises(lambda: self.scene32(x=jc.Displacement([0.0, 1.0, 1e39])), ValueError,
+               "x displacement [0.e+00 1.e+00 1.e+39] overflows in float32")
+
+    def test_solve_normal_checks_in_the_grid_dtype(self):
+        raises(lambda: jc.solve_normal(self.GRID32, jc.Sphere(1.0),
+                                       jc.Elastic(1e38, 0.3), force=0.01),
+               ValueError, "J(0) = 1e-38", "float32")
+        raises(lambda: jc.solve_normal(self.GRID32, jc.Sphere(1.0), ELASTIC,
+                                       force=1e39),
+               ValueError, "force 1e+39 overflows in float32")
+
+    def test_a_preset_cast_to_float32_is_checked_again(self):
+        # jc.presets cast with dtype=: the scene is rebuilt in float32, so its checks
+        # run in the solve's dtype.
+        sc = jc.presets.hertz(n=8)
+        sc = eqx.tree_at(lambda s: s.times, sc, jnp.asarray([1e5]))  # one point: fine
+        jc.presets._cast(sc, jnp.float32)
+        sc = eqx.tree_at(lambda s: s.normal, sc, jc.Force(jnp.asarray([0.15, 0.15])))
+        sc = eqx.tree_at(lambda s: s.times, sc, jnp.asarray([1e5, 1e5 + 1e-3]))
+        raises(lambda: jc.presets._cast(sc, jnp.float32), ValueError,
+               "not strictly increasing in float32")
+
+
+def test_relaxation_times_repeated_to_round_off():
+    # 1 + 1e-15 is 4.5 units of float64 rounding from 1: the same time.
+    for build in (lambda tau: jc.Prony(1.0, [0.5, 0.5], tau, 0.3),
+                  lambda tau: jc.Prony.from_creep(2.0, [0.5, 0.5], tau, 0.3)):
+        raises(lambda: build([1.0, 1.000000000000001]), ValueError,
+               "tau must be pairwise distinct beyond rounding", "1.000000000000001")
+        build([1.0, 1.00000000000001])  # 45 units apart: two arms
+    # Traced (under jit): the same rule through eqx.error_if.
+    fn = jax.jit(lambda tau: jc.Prony(1.0, jnp.array([0.5, 0.5]), tau, 0.3).creep(1.0))
+    runtime_error(lambda: fn(jnp.array([1.0, 1.000000000000001])),
+                  "tau must be pairwise distinct beyond rounding")
+
+
+class TestSurfaceEdge:
+    """A `jc.Surface` whose contact reaches the edge of a non-periodic grid, or covers
+    it, warns like a `jc.Sphere` (before: no warning)."""
+
+    G, NU, R = 1e6, 0.3, 1e-2
+    GRID16 = TestEdgeOfDomain.GRID16
+
+    def paraboloid(self):
+        x, y = self.GRID16.coordinates()
+        return (x * x + y * y) / (2 * self.R)
+
+    def test_flat_surface_covers_the_grid(self):
+        flat = jc.Surface(jnp.zeros((16, 16)))
+        with pytest.warns(jc.EdgeContactWarning, match="covers every cell of the grid"):
+            jc.Scene(self.GRID16, flat, jc.Elastic(self.G, self.NU), TIMES,
+                     normal=jc.Force(1e-3))
+
+    @pytest.mark.parametrize("a, warns", [(0.5e-3, False), (0.95e-3, True)])
+    def test_paraboloid_agrees_with_the_sphere(self, a, warns):
+        # The bearing-area estimate is Hertz's for a paraboloid: a Hertz radius of
+        # 0.95 mm covers the centres of the outer ring's cells (0.9375 mm out); the
+        # sphere's warning (radius > 0.875 mm, the ring's inner edge) agrees at both.
+        force = jc.Force(TestEdgeOfDomain.hertz_force(self, a))
+        mat = jc.Elastic(self.G, self.NU)
+        for indenter in (jc.Surface(self.paraboloid()), jc.Sphere(self.R)):
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always", jc.EdgeContactWarning)
+                jc.Scene(self.GRID16, indenter, mat, TIMES, normal=force)
+            assert (len(caught) == 1) == warns, (indenter, caught)
+
+    def test_displacement_control_and_offset(self):
+        # Approach delta: the contact edge estimated at h = delta / 2 above the lowest
+        # point (heights + 1 mm offset: the approach counts from height 0).
+        mat = jc.Elastic(self.G, self.NU)
+        heights = self.paraboloid() + 1e-3
+        edge_h = float(self.paraboloid()[0, 8])  # the outer ring on the x axis
+        jc.Scene(self.GRID16, heights, mat, TIMES,
+                 normal=jc.Displacement(1e-3 + 1.9 * edge_h))
+        with pytest.warns(jc.EdgeContactWarning, match="reaches the outer ring"):
+            jc.Scene(self.GRID16, heights, mat, TIMES,
+                     normal=jc.Displacement(1e-3 + 2.1 * edge_h))
+
+    def test_solve_normal_warns_and_periodic_does_not(self):
+        flat = jnp.zeros((16, 16))
+        mat = jc.Elastic(self.G, self.NU)
+        with pytest.warns(jc.EdgeContactWarning, match="covers every cell of the grid"):
+            jc.solve_normal(self.GRID16, flat, mat, force=1e-3)
+        periodic = jc.Grid((16, 16), 2e-3, periodic=True)
+        jc.Scene(periodic, flat, mat, TIMES, normal=jc.Force(1e-3))
+
+
+class TestRuntimeMessageFirst:
+    """What a user sees of a traced check (measured): under `jax.jit` the first line is
+    "INTERNAL: CpuCallback error ..." and the message sits ~50 lines down; under
+    `eqx.filter_jit` / `jc.solve` the first line is equinox's "Above is the stack ...".
+    `_validate.clear_runtime_errors` re-raises it as a ValueError whose first line is
+    the message."""
+
+    @staticmethod
+    def build(w):
+        sc = jc.Scene(GRID, jc.Sphere(1.0), ELASTIC, TIMES, jc.Force(w))
+        return jc.solve(sc).approach[-1]
+
+    def first_line(self, fn):
+        with pytest.raises(Exception) as info:
+            jax.block_until_ready(fn())
+        return str(info.value).splitlines()[0], info.value
+
+    def test_jax_jit(self):
+        from jaxcontact._validate import clear_runtime_errors
+
+        fn = jax.jit(self.build)
+        line, exc = self.first_line(lambda: fn(-0.01))
+        assert line.startswith("INTERNAL: CpuCallback error")  # what users see today
+        assert "normal force must be" in str(exc)
+
+        def clear():
+            with clear_runtime_errors():
+                return jax.block_until_ready(fn(-0.01))
+
+        line, exc = self.first_line(clear)
+        assert isinstance(exc, ValueError)
+        assert line == "normal force must be finite and >= 0"
+
+    def test_solve_of_a_changed_scene(self):
+        """`jc.solve` itself runs its program inside `clear_runtime_errors`: the
+        message is the first line (equinox's "Above is the stack ..." before)."""
+        sc = eqx.tree_at(lambda s: s.times, scene(), jnp.asarray([0.0, 1.0, 0.5]))
+        line, exc = self.first_line(lambda: jc.solve(sc))
+        assert isinstance(exc, ValueError)
+        assert line == "times must be strictly increasing (in the grid's dtype)"
+
+    def test_other_errors_pass_through(self):
+        from jaxcontact._validate import clear_runtime_errors
+
+        with pytest.raises(KeyError, match="other"):
+            with clear_runtime_errors():
+                raise KeyError("other")

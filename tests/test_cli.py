@@ -172,6 +172,22 @@ def test_example_scene_file_parses_with_overrides():
         (ZENER_TOML.replace('slip = "total"', 'slip = "some"'), "slip"),
         (ZENER_TOML + "\n[extra]\na = 1\n", "extra"),
         (ZENER_TOML.replace("steps = 7", "steps = 0"), "steps"),
+        # Wrong types (issue 31): each named with its table and value, exit 2.
+        (ZENER_TOML.replace("shape = [24, 24]", 'shape = "big"'),
+         "[grid] shape must be [nx, ny], got 'big'"),
+        (ZENER_TOML.replace("end = 0.03\nsteps = 7", 'times = [0.0, "a"]'),
+         "[time] times must be a number or a list of numbers, got [0.0, 'a']"),
+        (ZENER_TOML.replace("force = 0.15", "force = {{t = [0, 1], value = [0, 'a']}}"),
+         "[normal] force.value must be a number or a list of numbers"),
+        (ZENER_TOML.replace("radius = 10e-3", 'radius = "x"'), "radius"),
+        (ZENER_TOML.replace('slip = "total"', 'friction = "high"'), "'high'"),
+        (ZENER_TOML.replace("[grid]", "grid = 3\n[other]"), "['other']"),
+        (ZENER_TOML.replace("[time]\nend = 0.03\nsteps = 7\n", ""),
+         "missing [time] table"),
+        ("material = 3\n" + ZENER_TOML.replace(
+            '[material]\ntype = "zener"\nmu_inf = 1.93e6\nmu_0 = 482500.0\n'
+            'tau = 0.01\npoisson = 0.3\n', ""),
+         "[material] must be a table, got 3"),
     ],
 )
 def test_bad_scene_file_exits_2_naming_the_problem(tmp_path, capsys, body, message):
@@ -236,3 +252,188 @@ def test_run_example_scene_file(tmp_path, capsys):
     assert (np.abs(fx) <= 0.3 * w * (1 + 1e-6)).all()  # Coulomb bound on the total
     assert np.all(np.diff(np.asarray(arrays["stick_ratio"][1:])) <= 1e-12)  # shrinking
     assert (tmp_path / "ramp_to_sliding_stick.png").stat().st_size > 0
+
+
+# ---- Output names and the output folder (issue 31, items 5 and 10) -------------------
+
+# The smallest scene file: elastic Hertz contact on 8 x 8 cells, one time point.
+TINY_TOML = """
+name = {name}
+[grid]
+shape = [8, 8]
+size = 4e-3
+[indenter]
+type = "sphere"
+radius = 10e-3
+[material]
+type = "elastic"
+shear_modulus = 1.93e6
+poisson = 0.3
+[time]
+times = [0.0]
+[normal]
+force = 0.15
+"""
+
+
+def _tiny(path, name='"tiny"'):
+    path.write_text(TINY_TOML.format(name=name))
+    return path
+
+
+@pytest.mark.parametrize(
+    "name", ['"../escaped"', '"sub/evil"', '"/abs/evil"', '".."', '""', '"a\\\\b"', "3"]
+)
+def test_scene_name_must_stay_inside_the_output_folder(tmp_path, capsys, name):
+    # Before: "../escaped" wrote escaped.npz and PNGs beside --out and exited 0;
+    # "sub/evil" crashed with a traceback after the solve.
+    scene_file = _tiny(tmp_path / "scene.toml", name)
+    out = tmp_path / "a" / "out"
+    assert main(["run", str(scene_file), "--out", str(out)]) == 2
+    captured = capsys.readouterr()
+    shown = repr(eval(name))  # the name as the message quotes it
+    assert f"name {shown}" in captured.err, captured.err
+    assert "solving" not in captured.out  # refused before the solve
+    written = sorted(
+        str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*") if p.is_file()
+    )
+    assert written == ["scene.toml"]
+
+
+def test_out_that_is_a_file_exits_2_before_the_solve(tmp_path, capsys):
+    target = tmp_path / "results.txt"
+    target.write_text("not a folder")
+    for out in (target, target / "deeper"):
+        assert main(["run", "hertz", "--n", "8", "--out", str(out)]) == 2
+        captured = capsys.readouterr()
+        assert captured.out == ""  # nothing solved, nothing printed
+        assert str(target) in captured.err
+        assert "not a directory" in captured.err
+    assert target.read_text() == "not a folder"
+
+
+def test_unwritable_out_exits_2_before_the_solve(tmp_path, capsys):
+    if os.geteuid() == 0:  # root ignores permissions: use a read-only mount instead
+        out = Path("/sys/jaxcontact-test-out")
+        try:
+            out.mkdir()
+        except OSError:
+            pass
+        else:  # pragma: no cover - /sys writable here: no read-only folder to test
+            out.rmdir()
+            pytest.skip("no read-only folder available to root")
+    else:
+        locked = tmp_path / "locked"
+        locked.mkdir(mode=0o555)
+        out = locked / "out"
+    assert main(["run", "hertz", "--n", "8", "--out", str(out)]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert f"--out {str(out)!r} is not a writable directory" in captured.err
+
+
+def test_existing_outputs_are_kept_unless_overwrite(tmp_path, capsys):
+    scene_file = _tiny(tmp_path / "scene.toml")
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "tiny.npz").write_bytes(b"an earlier result")
+    assert main(["run", str(scene_file), "--out", str(out)]) == 2
+    captured = capsys.readouterr()
+    assert "already holds tiny.npz: pass --overwrite" in captured.err
+    assert "solving" not in captured.out
+    assert (out / "tiny.npz").read_bytes() == b"an earlier result"
+    # --overwrite replaces it with the new result (load balance 0.15 N to 1e-7).
+    assert main(["run", str(scene_file), "--out", str(out), "--overwrite"]) == 0
+    arrays, meta = _load(out / "tiny.npz")
+    assert meta["scene"]["name"] == "tiny"
+    np.testing.assert_allclose(arrays["normal_force"], [0.15], rtol=1e-7)
+
+
+# ---- Scene files: a height-field indenter (issue 31, Deliver 3) -----------------------
+
+
+def _surface_toml(folder, file_line, extra=""):
+    body = TINY_TOML.format(name='"surf"').replace(
+        'type = "sphere"\nradius = 10e-3', f'type = "surface"\n{file_line}{extra}'
+    )
+    path = folder / "surf.toml"
+    path.write_text(body)
+    return path
+
+
+def _sphere_gap():
+    grid = jc.Grid((8, 8), 4e-3)
+    return np.asarray(jc.Sphere(10e-3).gap(grid))
+
+
+def test_scene_file_surface_from_a_height_file(tmp_path, capsys, monkeypatch):
+    # The sphere's own gap, stored in micrometres beside the scene file and read with
+    # scale = 1e-6: the same scene as TINY_TOML's sphere (relative to the scene file's
+    # folder, not to the working directory).
+    folder = tmp_path / "scenes"
+    folder.mkdir()
+    np.save(folder / "heights.npy", _sphere_gap() * 1e6)
+    np.savetxt(folder / "heights.csv", _sphere_gap() * 1e6, delimiter=",")
+    monkeypatch.chdir(tmp_path)
+    for name in ("heights.npy", "heights.csv"):
+        path = _surface_toml(folder, f'file = "{name}"', "\nscale = 1e-6")
+        scene, _ = jc.presets.from_toml(path)
+        assert isinstance(scene.indenter, jc.Surface)
+        np.testing.assert_allclose(scene.indenter.heights, _sphere_gap(), rtol=1e-12)
+    # Solved through the CLI: the approach equals the sphere scene's (rtol 1e-10).
+    assert main(["run", str(path), "--out", str(tmp_path / "out")]) == 0
+    sphere_file = _tiny(tmp_path / "tiny.toml")
+    assert main(["run", str(sphere_file), "--out", str(tmp_path / "out")]) == 0
+    surf, meta = _load(tmp_path / "out" / "surf.npz")
+    tiny, _ = _load(tmp_path / "out" / "tiny.npz")
+    assert meta["scene_summary"]["indenter"] == "Surface"
+    np.testing.assert_allclose(surf["approach"], tiny["approach"], rtol=1e-10)
+
+
+@pytest.mark.parametrize(
+    "file_line, extra, argv, message",
+    [
+        ('file = "missing.npy"', "", [], "missing.npy' does not exist"),
+        ('file = "small.npy"', "", [], "has shape (4, 4), the [grid] shape is (8, 8)"),
+        ('file = "heights.npy"', "", ["--n", "16"], "a surface file is not resampled"),
+        ('file = "heights.npy"', '\nscale = "um"', [], "scale must be a number, got 'um'"),
+        ('file = "heights.png"', "", [], "expected .npy, .txt, .csv or .dat"),
+        ("file = 3", "", [], "file must be a path, got 3"),
+        ('radius = 1e-3', "", [], "unknown key(s) ['radius']"),
+        ('file = "text.txt"', "", [], "text.txt' cannot be read"),
+    ],
+)
+def test_bad_surface_file_exits_2(tmp_path, capsys, file_line, extra, argv, message):
+    np.save(tmp_path / "heights.npy", _sphere_gap())
+    np.save(tmp_path / "small.npy", np.zeros((4, 4)))
+    (tmp_path / "heights.png").write_bytes(b"\x89PNG")
+    (tmp_path / "text.txt").write_text("a b c\nd e f\n")
+    path = _surface_toml(tmp_path, file_line, extra)
+    assert main(["run", str(path), *argv, "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert message in err, err
+
+
+def test_scene_file_sphere_centre(tmp_path, capsys):
+    body = TINY_TOML.format(name='"tiny"').replace(
+        "radius = 10e-3", "radius = 10e-3\ncentre = [1e-4, -2e-4]"
+    )
+    (tmp_path / "c.toml").write_text(body)
+    scene, _ = jc.presets.from_toml(tmp_path / "c.toml")
+    np.testing.assert_array_equal(np.asarray(scene.indenter.centre), [1e-4, -2e-4])
+    (tmp_path / "c.toml").write_text(body.replace("[1e-4, -2e-4]", "[1e-4]"))
+    assert main(["run", str(tmp_path / "c.toml"), "--out", str(tmp_path / "o")]) == 2
+    assert "[indenter] centre must be [x, y], got [0.0001]" in capsys.readouterr().err
+
+
+def test_float32_run_checks_the_scene_in_float32(tmp_path, capsys):
+    # The scene file is read in float64 and cast (--float32): the cast scene is checked
+    # again. Late times collapse in float32 (before: solved, the steps wrong).
+    body = TINY_TOML.format(name='"late"').replace(
+        "times = [0.0]", "times = [1e5, 100000.005, 100000.01]"
+    )
+    path = tmp_path / "late.toml"
+    path.write_text(body)
+    assert main(["run", str(path), "--out", str(tmp_path / "o"), "--float32"]) == 2
+    err = capsys.readouterr().err
+    assert "times are not strictly increasing in float32" in err, err

@@ -119,7 +119,8 @@ def test_fit_recovers_pmma_on_the_closed_form_model(kind):
     err = np.abs(params(fit.material) / params(pmma()) - 1)
     assert np.all(err < 1e-6), err
     assert fit.loss < 1e-18
-    assert fit.loss_history.shape == (1 + fit.adam_steps + fit.lbfgs_steps,)
+    assert fit.optimiser == "lm" and fit.lm_steps > 0  # the default (optimistix)
+    assert fit.loss_history[0] >= fit.loss_history[-1] == fit.loss
     # The start (apparent moduli + a cheap Prony fit to them) is already close: for a
     # held step on this model the apparent modulus is G(t) (1/J(t)) itself.
     assert fit.loss_history[0] < 1e-4
@@ -141,6 +142,119 @@ def test_fit_from_a_poor_start():
     err = np.abs(params(fit.material) / params(pmma()) - 1)
     assert np.all(err < 1e-6), err
     assert fit.loss_history[0] > 1e-3 and fit.loss < 1e-18
+
+
+ONE_ARM = (1e9, 2e9, 0.5)  # g_inf [Pa], g_1 [Pa], tau_1 [s]
+
+
+def ramp_hold_unload_case(noise=0.01, seed=0):
+    """A 0.5 s ramp to 20 um, held to 2 s, unloaded to 6 um by 2.5 s (displacement
+    control); the stand-in model (Lee & Radok's integral, also through the unloading,
+    where it is not Ting's solution: here it only has to be the model that made the
+    data) with one arm; `noise` x max force Gaussian noise."""
+    times = jnp.asarray(np.concatenate([np.linspace(0, 0.5, 6), np.linspace(
+        0.5, 2.0, 13)[1:], np.linspace(2.0, 2.5, 6)[1:]]))
+    delta = jnp.interp(times, jnp.array([0, 0.5, 2.0, 2.5]),
+                       jnp.array([0, 20e-6, 20e-6, 6e-6]))
+    truth = jc.Prony(ONE_ARM[0], jnp.array([ONE_ARM[1]]), jnp.array([ONE_ARM[2]]), NU)
+    ctx = (times, delta)
+    force, _ = hertz_volterra_force(truth, ctx)
+    rng = np.random.default_rng(seed)
+    force = np.asarray(force) + noise * float(jnp.max(force)) * rng.standard_normal(
+        times.shape)
+    grid = jc.Grid((8, 8), 1280e-6)  # unused by the stand-in
+    template = jc.Scene(grid, jc.Sphere(R), jc.Elastic(1e9, NU), times,
+                        normal=jc.Displacement(delta))
+    return jc.IndentationData(times, force=force, depth=delta), template, (
+        hertz_volterra_force, ctx)
+
+
+def test_ramp_hold_unload_default_start_recovers_the_truth():
+    """The issue's first failure: the default start took its apparent moduli from the
+    unloading too (where they fall towards 0), started at g_inf ~ 0 and stayed there
+    (log-parametrisation: no gradient), reporting converged=True. Now: every
+    parameter within 3 reported standard deviations (1 % noise), converged."""
+    data, template, model = ramp_hold_unload_case()
+    fit = jc.fit_prony(data, template, 1, _model=model)
+    assert fit.converged, fit.message
+    got = params(fit.material)
+    std = np.concatenate([[fit.std["g_inf"]], fit.std["g"], fit.std["tau"]])
+    z = np.log(got / np.array(ONE_ARM)) / std
+    assert np.all(np.abs(z) < 3), (got, std)
+    assert float(fit.initial.g_inf) > 0.1 * ONE_ARM[0]  # the start, from loading only
+
+
+def test_a_fit_stuck_at_a_boundary_restarts_or_says_it_has_not_converged(monkeypatch):
+    """From g_inf = 1e-10 Pa (the trap): the boundary probe moves g_inf back inside and
+    the fit recovers the truth; with no restart allowed the fit stays stuck and says
+    converged=False (before: True, 'the line search cannot decrease the loss'; the
+    Gauss-Newton certificate alone cannot see it: the log-parameter's column is 0)."""
+    data, template, model = ramp_hold_unload_case()
+    start = jc.Prony(1e-10, jnp.array([3e9]), jnp.array([0.8]), NU)
+    fit = jc.fit_prony(data, template, 1, _model=model, init=start)
+    assert fit.converged and "restart" in fit.message, fit.message
+    assert abs(float(fit.material.g_inf) / ONE_ARM[0] - 1) < 0.1
+    monkeypatch.setattr(_fit, "_MAX_RESTARTS", 0)
+    stuck = jc.fit_prony(data, template, 1, _model=model, init=start)
+    assert float(stuck.material.g_inf) < 1e-3 * ONE_ARM[0]  # still in the trap
+    assert not stuck.converged, stuck.message
+    assert "can still lower the loss" in stuck.message
+
+
+@pytest.mark.parametrize("limits", [dict(optimiser="lm", lm_steps=1),
+                                    dict(optimiser="lbfgs", adam_steps=0, lbfgs_steps=1)])
+def test_a_fit_stopped_early_is_not_converged(limits):
+    data, template, model = ramp_hold_unload_case()
+    start = jc.Prony(3e9, jnp.array([0.7e9]), jnp.array([1.5]), NU)
+    fit = jc.fit_prony(data, template, 1, _model=model, init=start, **limits)
+    assert not fit.converged, fit.message
+    assert fit.optimiser == limits["optimiser"]
+
+
+@pytest.mark.parametrize("optimiser, kind", [
+    ("lm", "force"), ("lm", "depth"), ("lbfgs", "force"),
+    pytest.param("lbfgs", "depth", marks=pytest.mark.xfail(strict=True, reason=(
+        "preconditioned L-BFGS from (0.2, 0.2, 5) x the truth stops at its iteration "
+        "bound (and says NOT converged): why LM is the default")))])
+def test_far_starts_reach_the_minimum(kind, optimiser):
+    """Starts 0.2-5x off in every parameter (4 of them), 1 % noise, a ramp-hold-unload
+    (force fitted) and a ramp-hold creep (depth fitted) curve: every fit converged with
+    every parameter within 3 reported standard deviations of the truth. Before:
+    L-BFGS (with its default preconditioning) from (5, 0.2, 0.2) x the truth on the
+    creep curve ended at g_1 = 0, tau_1 = 2e69 s saying converged=True, and from
+    (0.2, 0.2, 5) at its iteration bound."""
+    if kind == "force":
+        data, template, model = ramp_hold_unload_case()
+    else:
+        data, template, model = ramp_hold_creep_case()
+    truth = np.array(ONE_ARM)
+    for f in ([5, 0.2, 0.2], [0.2, 0.2, 5], [0.2, 5, 0.5], [5, 5, 2]):
+        start = jc.Prony(truth[0] * f[0], jnp.array([truth[1] * f[1]]),
+                         jnp.array([truth[2] * f[2]]), NU)
+        fit = jc.fit_prony(data, template, 1, _model=model, init=start,
+                           optimiser=optimiser)
+        assert fit.converged, (f, fit.message)
+        std = np.concatenate([[fit.std["g_inf"]], fit.std["g"], fit.std["tau"]])
+        z = np.log(params(fit.material) / truth) / std
+        assert np.all(np.abs(z) < 3), (f, params(fit.material), std)
+
+
+def ramp_hold_creep_case(noise=0.01, seed=0):
+    """A 0.5 s load ramp to 10 N held to 2 s (load control); the stand-in model's
+    depth with one arm and `noise` x max depth Gaussian noise."""
+    times = jnp.asarray(np.concatenate([np.linspace(0, 0.5, 6),
+                                        np.linspace(0.5, 2.0, 13)[1:]]))
+    load = jnp.interp(times, jnp.array([0, 0.5, 2.0]), jnp.array([0, 10.0, 10.0]))
+    truth = jc.Prony(ONE_ARM[0], jnp.array([ONE_ARM[1]]), jnp.array([ONE_ARM[2]]), NU)
+    ctx = (times, load)
+    depth, _ = hertz_volterra_depth(truth, ctx)
+    rng = np.random.default_rng(seed)
+    depth = np.asarray(depth) + noise * float(jnp.max(depth)) * rng.standard_normal(
+        times.shape)
+    template = jc.Scene(jc.Grid((8, 8), 1280e-6), jc.Sphere(R), jc.Elastic(1e9, NU),
+                        times, normal=jc.Force(load))
+    return jc.IndentationData(times, force=load, depth=depth), template, (
+        hertz_volterra_depth, ctx)
 
 
 @pytest.mark.slow
@@ -194,8 +308,16 @@ def test_sensitivities_match_finite_differences_and_predict_the_noise_error():
     h = 1e-6
     jac = np.stack([(curve(theta + h * e) - curve(theta - h * e)) / (2 * h)
                     for e in np.eye(5)], axis=1)
-    std_fd = np.sqrt(np.diag(np.linalg.inv(jac.T @ jac))) * rows[1][0]
+    cov_fd = np.linalg.inv(jac.T @ jac) * rows[1][0] ** 2
+    std_fd = np.sqrt(np.diag(cov_fd))
     np.testing.assert_allclose(rows[1][2], std_fd, rtol=1e-3)
+    # the whole covariance (same order: g_inf, g_1, g_2, tau_1, tau_2), not only its
+    # diagonal: the correlations to 1e-2 absolute
+    assert fit.parameter_names == ("g_inf", "g_1", "g_2", "tau_1", "tau_2")
+    corr = fit.covariance / np.outer(std_fd, std_fd)
+    corr_fd = cov_fd / np.outer(std_fd, std_fd)
+    np.testing.assert_allclose(corr, corr_fd, atol=1e-2)
+    assert np.max(np.abs(corr_fd - np.eye(5))) > 0.5  # the test sees correlations
 
 
 @pytest.mark.slow
@@ -322,7 +444,7 @@ def full_model_case(n, nt, t_end=500.0):
     times = step_times(nt, t_end)
     delta = jnp.where(times > 0, 20e-6, 0.0)
     scene = jc.Scene(grid, jc.Sphere(R), pmma(), times, normal=jc.Displacement(delta))
-    sol = jc.solve(scene)
+    sol = jc.solve(scene, scheme="linear")  # fit_prony's default scheme
     assert bool(np.all(sol.converged))
     return jc.IndentationData(times, force=sol.normal_force, depth=delta), scene
 
@@ -355,3 +477,123 @@ def test_fit_recovers_pmma_through_the_contact_model_64x64x40():
     """The issue's scene (2 terms, 64^2 x 40 steps); its time is measured by
     benchmarks/fit.py, not asserted here."""
     check_full_model_fit(64, 40)
+
+
+def test_check_grid_reports_the_discretisation_error():
+    """`check_grid=True`: the fitted model's curve on the fit's grid against a grid
+    twice as fine, computed here independently with `jc.solve` (linear scheme, the
+    fit's default) on the 2n grid: the same RMS to 1e-8 relative. A 1-arm ramp-hold
+    at 8^2 x 10 steps (data from 16^2)."""
+    times = jnp.linspace(0.0, 2.0, 10)
+    depth = jnp.minimum(times / 0.5, 1.0) * 1e-6
+    truth = jc.Prony(1e3, jnp.array([2e3]), jnp.array([0.5]), 0.5)
+
+    def scene(n, material):
+        return jc.Scene(jc.Grid((n, n), 10e-6), jc.Sphere(5e-6), material, times,
+                        normal=jc.Displacement(depth))
+
+    force = jc.solve(scene(16, truth), scheme="linear").normal_force
+    data = jc.IndentationData(times, force=force, depth=depth)
+    fit = jc.fit_prony(data, scene(8, jc.Elastic(3e3, 0.5)), 1, check_grid=True)
+    fine = jc.solve(scene(16, fit.material), scheme="linear").normal_force
+    expected = float(np.sqrt(np.mean((fit.curve - np.asarray(fine)) ** 2)))
+    assert fit.discretisation is not None and expected > 0
+    np.testing.assert_allclose(fit.discretisation, expected, rtol=1e-8)
+    after = _fit.discretisation_error(fit, data, scene(8, jc.Elastic(3e3, 0.5)))
+    np.testing.assert_allclose(after, expected, rtol=1e-8)  # the CLI's path
+    # the data come from 16^2, so the fit on 8^2 absorbs its discretisation error:
+    # the residual is of the order of the reported bias
+    rms = float(np.sqrt(np.mean(fit.residual**2)))
+    assert rms < 2 * fit.discretisation
+
+
+def test_fixed_parameters_are_held_and_the_rest_fitted():
+    """`fixed=`: with the true relaxation time held, the moduli are recovered within 3
+    of their reported std (1 % noise) and the time is exactly the given one with a
+    zero std; a wrong fixed time (x2) leaves a worse fit; bad values are refused."""
+    data, template, model = ramp_hold_unload_case()
+    tau = ONE_ARM[2]
+    fit = jc.fit_prony(data, template, 1, _model=model, fixed={"tau": [tau]})
+    assert fit.converged, fit.message
+    assert float(fit.material.tau[0]) == pytest.approx(tau, rel=1e-14)
+    assert fit.std["tau"][0] == 0 and np.all(fit.covariance[-1] == 0)
+    for got, true, s in ((float(fit.material.g_inf), ONE_ARM[0], fit.std["g_inf"]),
+                         (float(fit.material.g[0]), ONE_ARM[1], fit.std["g"][0])):
+        assert abs(np.log(got / true)) < 3 * s, (got, true, s)
+    free = jc.fit_prony(data, template, 1, _model=model)
+    wrong = jc.fit_prony(data, template, 1, _model=model, fixed={"tau": [2 * tau]})
+    assert wrong.loss > 2 * free.loss
+    # the std of the free moduli shrink when the time is held (it correlates with them)
+    assert fit.std["g"][0] < free.std["g"][0]
+    for bad, match in (({"tau": [0.0]}, "must be 1 numbers > 0"),
+                       ({"g_inf": -1.0}, "must be a number > 0"),
+                       ({"nu": 0.3}, "unknown parameter")):
+        with pytest.raises(ValueError, match=match):
+            jc.fit_prony(data, template, 1, _model=model, fixed=bad)
+
+
+def test_fit_is_unit_invariant():
+    """The same ramp-hold data in SI (m, N, Pa, s) and in um / nN / kPa (and ms) give
+    the same parameters up to the unit factors (kPa = nN / um^2), to 1e-6 relative:
+    the start, the steps and the stopping tests are dimensionless. Full contact model,
+    8^2, 1 arm, data from 16^2."""
+    times = jnp.linspace(0.0, 2.0, 10)
+    depth = jnp.minimum(times / 0.5, 1.0) * 1e-6
+    truth = jc.Prony(1e3, jnp.array([2e3]), jnp.array([0.5]), 0.5)
+
+    def scene(n, material, length, time_unit, d):
+        return jc.Scene(jc.Grid((n, n), 10e-6 * length), jc.Sphere(5e-6 * length),
+                        material, times * time_unit, normal=jc.Displacement(d))
+
+    force = np.asarray(jc.solve(scene(16, truth, 1.0, 1.0, depth),
+                                scheme="linear").normal_force)
+    fits = []
+    for length, force_unit, time_unit in ((1.0, 1.0, 1.0), (1e6, 1e9, 1e3)):
+        data = jc.IndentationData(np.asarray(times) * time_unit, force=force * force_unit,
+                                  depth=np.asarray(depth) * length)
+        placeholder = jc.Elastic(3e3 * force_unit / length**2, 0.5)
+        fits.append(jc.fit_prony(data, scene(8, placeholder, length, time_unit,
+                                             jnp.asarray(depth) * length), 1))
+    si, other = fits
+    assert si.converged and other.converged, (si.message, other.message)
+    modulus = 1e9 / 1e12  # Pa -> nN / um^2
+    np.testing.assert_allclose(float(other.material.g_inf), float(si.material.g_inf)
+                               * modulus, rtol=1e-6)
+    np.testing.assert_allclose(np.asarray(other.material.g), np.asarray(si.material.g)
+                               * modulus, rtol=1e-6)
+    np.testing.assert_allclose(np.asarray(other.material.tau),
+                               np.asarray(si.material.tau) * 1e3, rtol=1e-6)
+    np.testing.assert_allclose(other.std["tau"], si.std["tau"], rtol=1e-3)
+
+
+def test_weights():
+    """Equal weights change nothing (they are normalised); a tiny weight on an outlier
+    removes it: 1 % noise plus one sample 30 % off; unweighted, some parameter lands
+    beyond 3 reported std of the truth, weighted (1e-6 on the outlier) all within
+    (std from the known noise level)."""
+    data, template, model = ramp_hold_unload_case()
+    plain = jc.fit_prony(data, template, 1, _model=model)
+    same = jc.fit_prony(data, template, 1, _model=model,
+                        weights=np.full(data.times.shape, 7.0))
+    np.testing.assert_allclose(params(same.material), params(plain.material), rtol=1e-9)
+    force = data.force.copy()
+    k = 10  # in the hold
+    force[k] *= 1.3
+    bad = jc.IndentationData(data.times, force=force, depth=data.depth)
+    truth = np.array(ONE_ARM)
+
+    def z(fit):
+        std = np.concatenate([[fit.std["g_inf"]], fit.std["g"], fit.std["tau"]])
+        return np.abs(np.log(params(fit.material) / truth)) / std
+
+    sigma = 0.01 * float(np.max(data.force))  # the noise the case adds: given, so
+    # that the outlier cannot hide by inflating the estimated noise
+    unweighted = jc.fit_prony(bad, template, 1, _model=model, noise_std=sigma)
+    w = np.ones(data.times.shape)
+    w[k] = 1e-6
+    weighted = jc.fit_prony(bad, template, 1, _model=model, weights=w, noise_std=sigma)
+    assert weighted.converged, weighted.message
+    assert np.max(z(unweighted)) > 3 and np.all(z(weighted) < 3), (
+        z(unweighted), z(weighted))
+    with pytest.raises(ValueError, match="weights must be"):
+        jc.fit_prony(bad, template, 1, _model=model, weights=-w)

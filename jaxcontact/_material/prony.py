@@ -114,15 +114,32 @@ def _series_arrays(names, values, checks):
     return _promote(v0, v1, v2)
 
 
+# Two times closer than this many units of rounding (relative) are the same time.
+_DISTINCT_ULPS = 16
+
+
 def _distinct(name: str, tau: jax.Array) -> jax.Array:
+    """Pairwise distinct times [time], beyond rounding: `tau = [1.0, 1.000000000000001]`
+    (4.5 units of float64 rounding apart) is one time repeated, not two arms; such a
+    pair must differ by more than `_DISTINCT_ULPS` units of rounding of the dtype
+    (relative: 3.6e-15 in float64, 1.9e-6 in float32). Merge repeated arms into one."""
     if tau.shape[0] < 2:
         return tau
+    rel = _DISTINCT_ULPS * float(jnp.finfo(tau.dtype).eps)
 
     def ok(tau):
         srt = jnp.sort(tau)
-        return srt[1:] > srt[:-1]
+        return srt[1:] - srt[:-1] > rel * srt[1:]
 
-    return _require(name, tau, (tau,), ok, "pairwise distinct", lambda: np.asarray(tau))
+    return _require(
+        name,
+        tau,
+        (tau,),
+        ok,
+        f"pairwise distinct beyond rounding (relative separation > {rel:.2g} in "
+        f"{tau.dtype.name}; merge repeated arms into one)",
+        lambda: np.array2string(np.asarray(tau), precision=17),
+    )
 
 
 # ---------------------------------------------------------------------------------------

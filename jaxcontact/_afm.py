@@ -1,0 +1,492 @@
+"""Reading AFM force-distance files into `jc.IndentationData` (`jc.read_afm`).
+
+One job: an instrument file (or an `afmformats` curve object) in, a clean indentation
+curve out: time [s], force [N] above the baseline, indentation depth [m], the segment of
+every sample (approach / hold / retract), the contact point, and the units used.
+
+The files are read by `afmformats` (an optional dependency: `pip install
+"jaxcontact[afm]"`; it reads JPK `.jpk-force`, `.jpk-force-map`, `.jpk-qi-data`, Asylum
+`.ibw`, NT-MDT, WSxM, Chiaro and other formats and hands back SI columns: `time` [s],
+`force` [N], `height (measured)` / `height (piezo)` [m], `segment`).
+
+Conventions:
+
+- Height `h` is the cantilever base's position, larger = further from the sample (as
+  JPK and afmformats record it). A repulsive force `F > 0` bends the cantilever up by
+  `F / k` (`k` the spring constant [N/m]), so the tip sits at `h + F / k`, and the
+  indentation depth after contact is
+
+      delta = (h_c - h) - (F - F_c) / k                                     [m]
+
+  with `h_c`, `F_c` height and force at the contact point. Where a file has no force
+  column but a `deflection` column [m], `F = k * deflection`.
+- The force is returned above the baseline (`F - F_baseline`, the baseline fitted on
+  the approach before contact, see below).
+- Contact point: the piecewise fit of Lin, Dimitriadis & Horkay (2007): on the approach
+  segment (with a pause just before it, at travel 0, which shows the baseline), for
+  every candidate contact travel `x_c` of the TIP (`x = (h_0 - h) - (F - F_0) / k`:
+  the base's travel less the deflection, so that the law below holds in the
+  indentation), the model
+
+      F(x) = a + b max(x - x_c, 0)^(3/2)       (+ s x: a tilted baseline, optional)
+
+  is fitted by linear least squares in `(a, b[, s])`; the contact point is the `x_c`
+  with the smallest sum of squared residuals (a grid over the approach, then a finer
+  grid around the best). The 3/2 power is Hertz's for a sphere; the baseline is the
+  fitted `a (+ s x)`. It is overridable (`contact_index=`).
+- Segments: each afmformats segment is classified by its height travel against the
+  whole curve's: down by more than 10 % -> approach, up by more than 10 % -> retract,
+  otherwise hold (between an approach and a retract) or pause (before the approach or
+  after the retract; pauses are dropped).
+- Kept samples: from the contact point to the end of the retract or to where the
+  retract loses contact (force back to the baseline, or the depth back to 0), as the
+  contact model has no adhesion.
+
+The probe radius is not in the files: it is an input of the fit (the scene's
+`jc.Sphere(radius)`). Relaxation times and modulus RATIOS (g_i / g_inf) do not depend
+on it; absolute moduli scale as `radius^(-1/2)` (Hertz: `F ~ G sqrt(R) delta^(3/2)`).
+
+??? cite "References"
+
+    Lin, D. C., Dimitriadis, E. K., Horkay, F. (2007). Robust strategies for automated
+    AFM force curve analysis - I. Non-adhesive indentation of soft, inhomogeneous
+    materials. J. Biomech. Eng. 129(3), 430-440.
+"""
+
+import dataclasses
+import os
+
+import numpy as np
+
+
+SEGMENT_NAMES = ("approach", "hold", "retract")
+_TRAVEL_FRACTION = 0.1  # a segment moving less than this share of the range is a hold
+
+
+def _afmformats():
+    try:
+        import afmformats
+    except ImportError as exc:  # pragma: no cover - depends on the environment
+        raise ImportError(
+            "reading AFM files needs the optional dependency afmformats: "
+            'pip install "jaxcontact[afm]"'
+        ) from exc
+    return afmformats
+
+
+@dataclasses.dataclass(frozen=True)
+class AFMCurve:
+    """One indentation curve read from an AFM file (`jc.read_afm`).
+
+    Every array is `(n,)` over the KEPT samples (from the contact point to the end of
+    contact), in SI units:
+
+    - `time`: time since the contact point [s].
+    - `force`: force above the baseline [N].
+    - `depth`: indentation depth (positive into the sample) [m].
+    - `segment`: `(n,)` int, index into `SEGMENT_NAMES` (0 approach, 1 hold, 2
+      retract).
+    - `mode`: `"creep"` (force clamp during the hold: fit the depth under the measured
+      force) or `"relaxation"` (height clamp: fit the force under the measured depth).
+    - `spring_constant` [N/m], `contact_time` [s, file clock], `contact_height` [m],
+      `baseline_force` [N] (the baseline at the contact point), `baseline_noise` [N]
+      (standard deviation of the approach before contact about the baseline).
+    - `path`: the file (or `None`), `metadata`: afmformats' metadata dict.
+    - `raw`: dict of the whole file's columns (`time`, `force`, `height`, `segment`
+      with -1 for pauses) for plots.
+    """
+
+    time: np.ndarray
+    force: np.ndarray
+    depth: np.ndarray
+    segment: np.ndarray
+    mode: str
+    spring_constant: float
+    contact_time: float
+    contact_height: float
+    baseline_force: float
+    baseline_noise: float
+    path: str | None
+    metadata: dict
+    raw: dict
+    units: tuple = (("time", "s"), ("force", "N"), ("depth", "m"))
+
+    def data(self, n_samples=None):
+        """The curve as a `jc.IndentationData` (SI: s, N, m). With `n_samples`
+        (dict segment name -> number of points, or one int for every segment), each
+        segment is averaged in that many consecutive bins (log-spaced in time for the
+        hold, where relaxation is fastest at its start; uniform elsewhere)."""
+        from ._fit import IndentationData
+
+        t, f, d, s = self.resampled(n_samples)
+        return IndentationData(t, force=f, depth=d)
+
+    def resampled(self, n_samples=None, *, return_counts=False):
+        """`(time, force, depth, segment)` averaged in bins (see `data`); with
+        `return_counts`, also the number of raw samples in each bin."""
+        if n_samples is None:
+            out = (self.time, self.force, self.depth, self.segment)
+            return out + (np.ones(self.time.shape, int),) if return_counts else out
+        if isinstance(n_samples, (int, np.integer)) and not isinstance(n_samples, bool):
+            n_samples = {name: int(n_samples) for name in SEGMENT_NAMES}
+        if not isinstance(n_samples, dict) or any(
+                k not in SEGMENT_NAMES for k in n_samples):
+            raise ValueError(
+                f"n_samples must be an int or a dict with keys in {SEGMENT_NAMES}, got "
+                f"{n_samples!r}")
+        # The contact point itself (t = 0, F = 0, depth = 0 by definition) starts the
+        # curve, so that the model starts from an unloaded half-space.
+        first = self.time[0] <= 0
+        out = [[0.0], [0.0], [0.0], [0]]
+        counts = [1]
+        for code, name in enumerate(SEGMENT_NAMES):
+            idx = np.flatnonzero(self.segment == code)
+            if idx.size == 0:
+                continue
+            k = n_samples.get(name, idx.size)
+            if not (isinstance(k, (int, np.integer)) and k >= 1):
+                raise ValueError(f"n_samples[{name!r}] must be an int >= 1, got {k!r}")
+            k = min(int(k), idx.size)
+            if name == "hold":
+                edges = np.unique(np.round(np.geomspace(1, idx.size + 1, k + 1)).astype(
+                    int)) - 1
+            else:
+                edges = np.unique(np.round(np.linspace(0, idx.size, k + 1)).astype(int))
+            for lo, hi in zip(edges[:-1], edges[1:], strict=True):
+                sel = idx[lo:hi]
+                if first and sel[0] == 0:
+                    sel = sel[1:]  # the contact sample is the first point already
+                    if sel.size == 0:
+                        continue
+                out[0].append(self.time[sel].mean())
+                out[1].append(self.force[sel].mean())
+                out[2].append(self.depth[sel].mean())
+                out[3].append(code)
+                counts.append(sel.size)
+        t, f, d, s = (np.asarray(v) for v in out)
+        if return_counts:
+            return t, f, d, s.astype(int), np.asarray(counts)
+        return t, f, d, s.astype(int)
+
+    def noise(self, kind):
+        """Standard deviation of the raw samples' noise in `kind` (`"force"` [N] or
+        `"depth"` [m]): from successive differences over the kept curve,
+        `median(|x_{k+1} - x_k|) / (0.6745 sqrt 2)` (robust to the few fast
+        changes of the signal, which is smooth at the sampling rate)."""
+        x = self.force if kind == "force" else self.depth
+        return float(np.median(np.abs(np.diff(x))) / (0.6745 * np.sqrt(2)))
+
+    def scene_template(self, radius, *, n=32, poisson=0.5, size_factor=4.0):
+        """A `jc.Scene` for `jc.fit_prony` on this curve: a sphere of `radius` [m], an
+        `n x n` grid `size_factor` times the largest Hertz contact radius
+        `sqrt(radius * max depth)` wide, a placeholder elastic material of Poisson's
+        ratio `poisson` (0.5: incompressible, the usual assumption for cells and
+        gels; only `G / (1 - nu)` is identifiable from indentation) and the control
+        mode of the hold (`jc.Force` for creep, `jc.Displacement` for relaxation;
+        the fit replaces the program by the data's)."""
+        import jax.numpy as jnp
+
+        from ._grid import Grid
+        from ._indenter import Sphere
+        from ._loading import Displacement, Force
+        from ._material.elastic import Elastic
+        from ._scene import Scene
+
+        if not (isinstance(radius, (int, float)) and np.isfinite(radius) and radius > 0):
+            raise ValueError(f"radius must be a finite number > 0 [m], got {radius!r}")
+        a_max = float(np.sqrt(radius * max(float(self.depth.max()), 0.0)))
+        if not a_max > 0:
+            raise ValueError("the curve has no positive indentation depth")
+        width = size_factor * a_max
+        # A placeholder modulus of the right order: Hertz at the largest force.
+        e_star = 3 * max(float(self.force.max()), 1e-30) / (
+            4 * np.sqrt(radius) * float(self.depth.max()) ** 1.5)
+        g = e_star * (1 - poisson) / 2
+        normal = Force(0.0) if self.mode == "creep" else Displacement(0.0)
+        return Scene(Grid(shape=(n, n), size=(width, width)), Sphere(radius),
+                     Elastic(shear_modulus=g, poisson=poisson),
+                     jnp.linspace(0.0, 1.0, 3), normal)
+
+
+# ---------------------------------------------------------------------------------------
+# Contact point.
+
+
+def contact_point(travel, force, *, baseline="constant", exponent=1.5, grid=200):
+    """Contact point of an approach curve by the piecewise fit of Lin et al. (2007).
+
+    **Arguments:**
+
+    - `travel`: `(n,)` travel of the cantilever base towards the sample [length],
+      increasing.
+    - `force`: `(n,)` force [force].
+    - `baseline`: `"constant"` or `"linear"` (a tilted baseline: virtual deflection).
+    - `exponent`: the power of the contact branch (3/2: Hertz, sphere).
+    - `grid`: number of candidate contact points per pass (two passes: the whole
+      approach, then between the best candidate's neighbours).
+
+    **Returns:** `(x_c, coefficients)`: the contact travel and the fitted
+    `(a, b[, s])` of `F = a + b max(x - x_c, 0)^exponent (+ s x)`.
+
+    **Raises:** `ValueError` when the fit finds no contact (`b <= 0` at the best
+    candidate, or the best candidate at the last sample).
+    """
+    x = np.asarray(travel, float)
+    y = np.asarray(force, float)
+    if x.shape != y.shape or x.ndim != 1 or x.size < 8:
+        raise ValueError(f"contact_point needs two 1-D arrays of >= 8 samples, got "
+                         f"shapes {x.shape}, {y.shape}")
+    # Normalise: the least squares below are then O(1) whatever the units.
+    x0, xs = x.min(), max(float(np.ptp(x)), 1e-300)
+    ys = max(float(np.std(y)), 1e-300)
+    u, v = (x - x0) / xs, (y - y.mean()) / ys
+
+    def ssr(candidates):
+        branch = np.maximum(u[None, :] - candidates[:, None], 0.0) ** exponent
+        cols = [np.ones_like(branch), branch]
+        if baseline == "linear":
+            cols.append(np.broadcast_to(u, branch.shape))
+        a = np.stack(cols, axis=-1)  # (m, n, p)
+        ata = np.einsum("mnp,mnq->mpq", a, a)
+        atb = np.einsum("mnp,n->mp", a, v)
+        ata += 1e-12 * np.eye(a.shape[-1])[None]
+        coef = np.linalg.solve(ata, atb[..., None])[..., 0]
+        res = np.einsum("mnp,mp->mn", a, coef) - v[None, :]
+        return np.sum(res**2, axis=1), coef
+
+    if baseline not in ("constant", "linear"):
+        raise ValueError(f"baseline must be 'constant' or 'linear', got {baseline!r}")
+    lo, hi = 0.0, 1.0
+    for _ in range(2):
+        cand = np.linspace(lo, hi, grid)
+        values, coefs = ssr(cand)
+        best = int(np.argmin(values))
+        step = cand[1] - cand[0]
+        lo, hi = max(cand[best] - step, 0.0), min(cand[best] + step, 1.0)
+    uc, coef = cand[best], coefs[best]
+    if not coef[1] > 0 or uc >= u.max():
+        raise ValueError("no contact found on the approach segment: the force does not "
+                         "rise above its baseline")
+    # Back to the caller's units.
+    a = coef[0] * ys + y.mean()
+    b = coef[1] * ys / xs**exponent
+    out = [a, b]
+    if baseline == "linear":
+        s = coef[2] * ys / xs
+        out = [a - s * x0, b, s]
+    return x0 + uc * xs, np.asarray(out)
+
+
+# ---------------------------------------------------------------------------------------
+# Segments.
+
+
+def classify_segments(height, segment):
+    """Names of the file's segments from their height travel: `{segment id: name}`
+    with names in `("approach", "hold", "retract", "pause")` (see the module notes)."""
+    ids = np.unique(segment)
+    span = max(float(np.ptp(height)), 1e-300)
+    moves = {}
+    for i in ids:
+        h = height[segment == i]
+        moves[int(i)] = (float(h[-1] - h[0])) / span
+    names, seen_approach, seen_retract = {}, False, False
+    for i in ids:
+        m = moves[int(i)]
+        if m < -_TRAVEL_FRACTION and not seen_approach:
+            names[int(i)], seen_approach = "approach", True
+        elif m > _TRAVEL_FRACTION and seen_approach and not seen_retract:
+            names[int(i)], seen_retract = "retract", True
+        elif seen_approach and not seen_retract and abs(m) <= _TRAVEL_FRACTION:
+            names[int(i)] = "hold"
+        else:
+            names[int(i)] = "pause"
+    return names
+
+
+# ---------------------------------------------------------------------------------------
+# Reader.
+
+
+def _column(curve, names):
+    for name in names:
+        if name in curve.columns:
+            return name, np.asarray(curve[name], float)
+    return None, None
+
+
+def read_afm(source, *, index=0, contact_index=None, baseline="constant",
+             segments=SEGMENT_NAMES, mode=None) -> AFMCurve:
+    """Read one force-distance curve from an AFM file into an `AFMCurve`.
+
+    **Arguments:**
+
+    - `source`: a path to any file `afmformats` reads (e.g. `.jpk-force`), or an
+      afmformats curve object (`afmformats.load_data(path)[i]`).
+    - `index`: which curve of a multi-curve file (a force map).
+    - `contact_index`: override the contact point: the sample index (into the whole
+      file) of contact. Default: found by `contact_point` on the approach.
+    - `baseline`: `"constant"` or `"linear"` baseline for the contact point fit.
+    - `segments`: the segments to keep, a subset of `("approach", "hold",
+      "retract")`.
+    - `mode`: `"creep"` or `"relaxation"`; default: from the file's imaging mode
+      (afmformats' `creep-compliance` / `stress-relaxation`), else from the hold
+      (height held within 1 % of the depth: relaxation).
+
+    **Returns:** an `AFMCurve` (SI units: s, N, m).
+
+    **Raises:** `ValueError` for a file without time, height, or force/deflection
+    columns, without a spring constant when one is needed, without an approach
+    segment, or without a contact; `ImportError` without afmformats.
+    """
+    # -- Initial set-up ----------------------------------------------------------------
+    path = None
+    if isinstance(source, (str, os.PathLike)):
+        path = os.fspath(source)
+        if not os.path.exists(path):
+            raise ValueError(f"no such file: {path!r}")
+        afm = _afmformats()
+        try:
+            curves = afm.load_data(path)
+        except Exception as exc:
+            raise ValueError(f"afmformats cannot read {path!r}: {exc}") from exc
+        if not 0 <= index < len(curves):
+            raise ValueError(f"index={index!r} out of range: {path!r} holds "
+                             f"{len(curves)} curve(s)")
+        curve = curves[index]
+    else:
+        curve = source
+        if not hasattr(curve, "columns") or not hasattr(curve, "metadata"):
+            raise TypeError(f"source must be a path or an afmformats curve, got "
+                            f"{type(source).__name__}")
+        path = curve.metadata.get("path") if hasattr(curve.metadata, "get") else None
+        path = None if path is None else os.fspath(path)
+    bad = [s for s in segments if s not in SEGMENT_NAMES]
+    if bad or "approach" not in segments:
+        raise ValueError(f"segments must include 'approach' and be among "
+                         f"{SEGMENT_NAMES}, got {segments!r}")
+    metadata = dict(curve.metadata)
+    k = metadata.get("spring constant")
+
+    # -- Columns ------------------------------------------------------------------------
+    _, time = _column(curve, ("time",))
+    _, height = _column(curve, ("height (measured)", "height (piezo)"))
+    _, force = _column(curve, ("force",))
+    if force is None:
+        _, deflection = _column(curve, ("deflection",))
+        if deflection is not None:
+            if not (k is not None and np.isfinite(k) and k > 0):
+                raise ValueError(f"the file has a deflection but no valid spring "
+                                 f"constant (got {k!r}): cannot compute the force")
+            force = float(k) * deflection
+    missing = [name for name, col in (("time", time), ("height", height),
+                                      ("force or deflection", force)) if col is None]
+    if missing:
+        raise ValueError(f"the curve lacks the column(s) {missing} (has "
+                         f"{list(curve.columns)})")
+    if not (k is not None and np.isfinite(k) and k > 0):
+        raise ValueError(f"the file records no valid spring constant (got {k!r})")
+    k = float(k)
+    seg_ids = np.asarray(curve["segment"] if "segment" in curve.columns
+                         else np.zeros(time.shape, int), int)
+    names = classify_segments(height, seg_ids)
+    code = np.full(time.shape, -1)
+    for i, name in names.items():
+        if name in SEGMENT_NAMES:
+            code[seg_ids == i] = SEGMENT_NAMES.index(name)
+    if not (code == 0).any():
+        raise ValueError("the curve has no approach segment (the height never moves "
+                         "towards the sample by more than 10 % of its range)")
+
+    # -- Contact point ---------------------------------------------------------------
+    app = np.flatnonzero(code == 0)
+    # A pause just before the approach (same height: travel 0) belongs to the baseline.
+    before = [i for i in names if i < int(seg_ids[app[0]])]
+    if before and names[before[-1]] == "pause":
+        app = np.concatenate([np.flatnonzero(seg_ids == before[-1]), app])
+    # The fit runs in the TIP's travel (base travel minus the deflection F / k), where
+    # the 3/2 law holds; in the base's travel a stiff sample bends it (a 40 nm early
+    # contact on the synthetic curve of tests/test_afm.py, 5 % deflection).
+    travel = height[app[0]] - height[app] - (force[app] - force[app[0]]) / k
+    if contact_index is None:
+        xc, coef = contact_point(travel, force[app], baseline=baseline)
+        ic = app[min(int(np.argmax(travel >= xc)) if (travel >= xc).any() else app.size,
+                     app.size - 1)]
+        # On the approach proper: the tip's travel fluctuates about 0 in a pause
+        # before it (noise / k), and a contact at its start must not land there.
+        ic = max(int(ic), int(np.flatnonzero(code == 0)[0]))
+    else:
+        if not (isinstance(contact_index, (int, np.integer)) and app[0] <= contact_index
+                <= app[-1]):
+            raise ValueError(f"contact_index must be a sample index on the approach "
+                             f"({app[0]}..{app[-1]}), got {contact_index!r}")
+        ic = int(contact_index)
+        pre = app[app < ic]
+        if pre.size >= 2:
+            coef = np.array([force[pre].mean(), 0.0])
+            if baseline == "linear":
+                s, a = np.polyfit(travel[: pre.size], force[pre], 1)
+                coef = np.array([a, 0.0, s])
+        else:
+            coef = np.array([force[ic], 0.0])
+    tr_all = height[app[0]] - height - (force - force[app[0]]) / k
+
+    def base(idx):
+        b = coef[0] * np.ones(np.shape(idx))
+        if coef.size == 3:
+            b = b + coef[2] * tr_all[idx]
+        return b
+
+    pre = app[app < ic]
+    noise = float(np.std(force[pre] - base(pre))) if pre.size >= 2 else float("nan")
+    f0 = float(base(ic))
+    # A tilted baseline (virtual deflection: a function of the base's position) is
+    # evaluated at every sample's own travel; a constant one is the same everywhere.
+    f_base = base(np.arange(time.size))
+    f_rel = force - f_base
+    depth = (height[ic] - height) - f_rel / k
+
+    # -- Mode ---------------------------------------------------------------------------
+    if mode is None:
+        imaging = str(metadata.get("imaging mode", ""))
+        if "creep" in imaging:
+            mode = "creep"
+        elif "relaxation" in imaging:
+            mode = "relaxation"
+        elif (code == 1).any():
+            hold = code == 1
+            mode = "relaxation" if np.ptp(height[hold]) < 0.01 * max(
+                float(depth[hold].max()), 1e-300) else "creep"
+        else:
+            mode = "relaxation"
+    if mode not in ("creep", "relaxation"):
+        raise ValueError(f"mode must be 'creep' or 'relaxation', got {mode!r}")
+
+    # -- Kept samples -------------------------------------------------------------------
+    keep_code = np.isin(code, [SEGMENT_NAMES.index(s) for s in segments])
+    keep = keep_code & (np.arange(time.size) >= ic) & (code >= 0)
+    ret = np.flatnonzero(keep & (code == 2))
+    if ret.size:
+        # The model has no adhesion: stop where the retract loses contact.
+        lost = (f_rel[ret] <= 0) | (depth[ret] <= 0)
+        if lost.any():
+            keep[ret[int(np.argmax(lost)):]] = False
+    kept = np.flatnonzero(keep)
+    if kept.size < 4 or not (depth[kept] > 0).any():
+        raise ValueError("no contact: fewer than 4 samples with the probe in contact")
+    return AFMCurve(
+        time=time[kept] - time[ic],
+        force=f_rel[kept],
+        depth=depth[kept],
+        segment=code[kept],
+        mode=mode,
+        spring_constant=k,
+        contact_time=float(time[ic]),
+        contact_height=float(height[ic]),
+        baseline_force=f0,
+        baseline_noise=noise,
+        path=path,
+        metadata=metadata,
+        raw={"time": time, "force": force, "height": height, "segment": code,
+             "contact_index": int(ic)},
+    )

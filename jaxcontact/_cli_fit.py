@@ -1,0 +1,317 @@
+"""`jaxcontact fit FILE... --radius R`: fit a Prony series to AFM indentation files.
+
+    jaxcontact fit FILE... --radius R [--arms N|auto] [--out DIR] [--n N]
+                   [--poisson NU] [--baseline constant|linear] [--samples A,H,R]
+                   [--segments approach,hold,retract] [--steps K]
+
+Each file is read by `jc.read_afm` (afmformats: `pip install "jaxcontact[afm]"`), its
+segments binned (`--samples`: points in the approach, hold and retract after contact),
+and `jc.fit_prony` fits the series through the full contact model (a sphere of radius
+`R` [m] on an `N x N` grid). Creep files (force clamp) fit the depth under the measured
+force; relaxation files (height clamp) the force under the measured depth. `--arms auto`
+fits 1 to 4 arms and keeps the one with the smallest BIC (AIC and BIC of every count
+are reported).
+
+Writes `DIR/STEM_fit.json` (parameters with Gauss-Newton standard deviations, the
+residual RMS and noise estimate, convergence, contact point, units) and
+`DIR/STEM_fit.png` (data, model and residuals per segment). The residual is also
+given in units of the data's own noise (each bin mean's, from the raw curve's
+successive differences): about 1 where the model reproduces the data to the noise;
+and the model's discretisation error (the fitted curve on a grid twice as fine;
+`--no-check-grid` skips it). Exit status: 0 on success,
+1 when a fit did not converge, 2 for bad input (the message names the bad value).
+
+Compiled programs are cached on disk (`JAXCONTACT_CACHE_DIR`, default
+`~/.cache/jaxcontact/xla`; empty: no cache), so a second run of the same sizes skips
+most of the compilation.
+
+The probe radius is not in the files: absolute moduli scale as `R^(-1/2)`; relaxation
+times and modulus ratios do not depend on it.
+"""
+
+import argparse
+import json
+import math
+import os
+import sys
+from pathlib import Path
+
+
+RADIUS_NOTE = ("the probe radius is an input (not in the file): absolute moduli scale "
+               "as radius^(-1/2); relaxation times and modulus ratios do not depend on it")
+
+
+class _BadInput(Exception):
+    pass
+
+
+def add_parser(sub):
+    """Register `fit` on the `jaxcontact` subcommand parser `sub`."""
+    p = sub.add_parser("fit", help="fit a Prony series to AFM indentation files")
+    p.add_argument("files", nargs="+", metavar="FILE",
+                   help="force-distance files afmformats reads (e.g. .jpk-force)")
+    p.add_argument("--radius", type=float, required=True,
+                   help="probe (sphere) radius [m]")
+    p.add_argument("--arms", default="2",
+                   help="number of Prony arms (1..8), or 'auto' (1..4, smallest BIC)")
+    p.add_argument("--out", default="jaxcontact-fit", help="output directory")
+    p.add_argument("--n", type=int, default=24, help="grid cells per side (default 24)")
+    p.add_argument("--poisson", type=float, default=0.5,
+                   help="Poisson's ratio, fixed (default 0.5: incompressible)")
+    p.add_argument("--baseline", default="constant", choices=("constant", "linear"),
+                   help="baseline of the contact point fit")
+    p.add_argument("--check-grid", action=argparse.BooleanOptionalAction, default=True,
+                   help="also solve the fitted model on a grid twice as fine and report "
+                        "the difference (the model's discretisation error; default on)")
+    p.add_argument("--steps", type=int, default=200,
+                   help="bound on the Levenberg-Marquardt steps (default 200)")
+    p.add_argument("--samples", default="8,24,8", metavar="A,H,R",
+                   help="points after binning in the approach, hold and retract")
+    p.add_argument("--segments", default="approach,hold,retract",
+                   help="segments to fit (approach is always needed)")
+    return p
+
+
+def _check(args):
+    if not (math.isfinite(args.radius) and args.radius > 0):
+        raise _BadInput(f"--radius must be a finite number > 0 [m], got {args.radius!r}")
+    if args.arms != "auto":
+        try:
+            arms = int(args.arms)
+        except ValueError:
+            raise _BadInput(f"--arms must be an integer or 'auto', got {args.arms!r}")
+        if not 1 <= arms <= 8:
+            raise _BadInput(f"--arms must be in 1..8, got {arms}")
+    if args.steps < 1:
+        raise _BadInput(f"--steps must be >= 1, got {args.steps}")
+    if args.n < 4:
+        raise _BadInput(f"--n must be >= 4, got {args.n}")
+    if not (-1 < args.poisson <= 0.5):
+        raise _BadInput(f"--poisson must be in (-1, 0.5], got {args.poisson!r}")
+    try:
+        samples = [int(v) for v in args.samples.split(",")]
+    except ValueError:
+        samples = []
+    if len(samples) != 3 or min(samples) < 1:
+        raise _BadInput(f"--samples must be three integers >= 1 (approach,hold,retract), "
+                        f"got {args.samples!r}")
+    segments = tuple(s.strip() for s in args.segments.split(",") if s.strip())
+    if "approach" not in segments or any(
+            s not in ("approach", "hold", "retract") for s in segments):
+        raise _BadInput(f"--segments must list approach and any of hold, retract; got "
+                        f"{args.segments!r}")
+    for f in args.files:
+        if not Path(f).is_file():
+            raise _BadInput(f"no such file: {f!r}")
+    return samples, segments
+
+
+def _information(fit, n_params):
+    """AIC and BIC of a least-squares fit with Gaussian noise of unknown variance."""
+    import numpy as np
+
+    n = fit.residual.shape[0]
+    ssr = float(np.sum(fit.residual**2))
+    base = n * math.log(max(ssr, 1e-300) / n)
+    return base + 2 * n_params, base + n_params * math.log(n)
+
+
+def _correlation(cov):
+    """Correlation matrix of a covariance (nested lists; None where undetermined)."""
+    import numpy as np
+
+    d = np.sqrt(np.diag(cov))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        c = cov / np.outer(d, d)
+    return [[float(v) if np.isfinite(v) else None for v in row] for row in c]
+
+
+def _fit_one(path, args, samples, segments):
+    import numpy as np
+
+    import jaxcontact as jc
+
+    try:
+        curve = jc.read_afm(path, baseline=args.baseline, segments=segments)
+    except (ValueError, TypeError) as exc:
+        raise _BadInput(f"{path}: {exc}") from exc
+    names = ("approach", "hold", "retract")
+    t, f, d, seg, counts = curve.resampled(dict(zip(names, samples, strict=True)),
+                                           return_counts=True)
+    data = jc.IndentationData(t, force=f, depth=d)
+    template = curve.scene_template(args.radius, n=args.n, poisson=args.poisson)
+    arm_counts = range(1, 5) if args.arms == "auto" else [int(args.arms)]
+    fits = {}
+    for k in arm_counts:
+        if t.size <= 2 * k + 2:
+            break
+        fit = jc.fit_prony(data, template, k, lm_steps=args.steps)
+        aic, bic = _information(fit, 1 + 2 * k)
+        fits[k] = (fit, aic, bic)
+    if not fits:
+        raise _BadInput(f"{path}: {t.size} samples are too few to fit")
+    best = min(fits, key=lambda k: fits[k][2])
+    fit = fits[best][0]
+    disc = None
+    if args.check_grid:
+        from ._fit import discretisation_error
+
+        disc = discretisation_error(fit, data, template)
+    m = fit.material
+
+    def entry(value, std_log):
+        value, std_log = float(value), float(std_log)
+        return {"value": value, "std": value * std_log if math.isfinite(std_log)
+                else None, "std_log": std_log if math.isfinite(std_log) else None}
+
+    g0 = float(m.g_inf) + float(np.sum(m.g))
+    rms = float(np.sqrt(np.mean(fit.residual**2)))
+    # The noise of each bin mean from the raw curve's own noise (independent of the
+    # fit), and the residual in units of it (1: the model is within the noise).
+    sigma = curve.noise(fit.kind) / np.sqrt(counts)
+    hold = seg == 1
+    chi = float(np.sqrt(np.mean((fit.residual / sigma) ** 2)))
+    chi_hold = float(np.sqrt(np.mean((fit.residual[hold] / sigma[hold]) ** 2))) if (
+        hold.any()) else None
+    result = {
+        "file": str(path),
+        "mode": curve.mode,
+        "fitted": fit.kind,
+        "radius_m": args.radius,
+        "radius_note": RADIUS_NOTE,
+        "poisson": args.poisson,
+        "grid": [args.n, args.n],
+        "arms": best,
+        "parameters": {
+            "g_inf_Pa": entry(m.g_inf, fit.std["g_inf"]),
+            "g_Pa": [entry(v, s) for v, s in zip(np.asarray(m.g), fit.std["g"],
+                                                  strict=True)],
+            "tau_s": [entry(v, s) for v, s in zip(np.asarray(m.tau), fit.std["tau"],
+                                                   strict=True)],
+        },
+        "log_parameter_names": list(fit.parameter_names),
+        "log_parameter_correlation": _correlation(fit.covariance),
+        "instantaneous_modulus_Pa": g0,
+        "ratios_g_over_g0": [float(v) / g0 for v in np.asarray(m.g)],
+        "residual_rms": rms,
+        "discretisation_rms": disc,
+        "discretisation_note": ("RMS change of the fitted model's curve on a grid twice "
+                                "as fine: a bias of the model, to compare with the "
+                                "residual and the noise"),
+        "noise_raw": curve.noise(fit.kind),
+        "residual_over_noise": chi,
+        "residual_over_noise_hold": chi_hold,
+        "converged": bool(fit.converged),
+        "message": fit.message,
+        "information_criteria": {str(k): {"aic": v[1], "bic": v[2], "loss": v[0].loss}
+                                 for k, v in fits.items()},
+        "contact_time_s": curve.contact_time,
+        "spring_constant_N_per_m": curve.spring_constant,
+        "samples": int(t.size),
+        "units": {"time": "s", "force": "N", "depth": "m", "modulus": "Pa (shear)"},
+    }
+    return result, fit, seg
+
+
+def _plot(fit, seg, result, path):
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return None
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(7, 6), sharex=True,
+                                      gridspec_kw={"height_ratios": [3, 1]})
+    unit = "nN" if fit.kind == "force" else "um"
+    scale = 1e9 if fit.kind == "force" else 1e6
+    for code, (name, colour) in enumerate(zip(("approach", "hold", "retract"),
+                                              ("C0", "C1", "C2"), strict=True)):
+        sel = seg == code
+        if not sel.any():
+            continue
+        top.plot(fit.times[sel], fit.target[sel] * scale, "o", ms=3, color=colour,
+                 label=f"data ({name})")
+        bottom.plot(fit.times[sel], fit.residual[sel] * scale, "o", ms=3, color=colour)
+    top.plot(fit.times, fit.curve * scale, "k-", lw=1, label="model")
+    top.set_ylabel(f"{fit.kind} [{unit}]")
+    top.set_title(f"{Path(result['file']).name}: {result['arms']} arm(s), "
+                  f"R = {result['radius_m']:g} m", fontsize=9)
+    top.legend(fontsize=8)
+    bottom.axhline(0, color="k", lw=0.5)
+    bottom.set_ylabel(f"residual [{unit}]")
+    bottom.set_xlabel("time since contact [s]")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def run_fit(args) -> int:
+    """The `fit` subcommand; returns the exit status."""
+    try:
+        samples, segments = _check(args)
+        try:
+            import afmformats  # noqa: F401
+        except ImportError:
+            raise _BadInput('reading AFM files needs afmformats: pip install '
+                            '"jaxcontact[afm]"')
+        out = Path(args.out)
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise _BadInput(f"--out {args.out!r} cannot be created: {exc}") from exc
+        import jax
+
+        jax.config.update("jax_enable_x64", True)
+        # A persistent compilation cache: the Levenberg-Marquardt solve through the
+        # contact model's adjoint compiles for tens of seconds; a second run of the
+        # same shapes (another file, the same --n and --samples) loads it instead.
+        cache = os.environ.get("JAXCONTACT_CACHE_DIR",
+                               os.path.join(os.path.expanduser("~"), ".cache",
+                                            "jaxcontact", "xla"))
+        if cache:
+            jax.config.update("jax_compilation_cache_dir", cache)
+            jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
+        status = 0
+        for path in args.files:
+            result, fit, seg = _fit_one(path, args, samples, segments)
+            stem = Path(path).name.split(".")[0]
+            json_path = out / f"{stem}_fit.json"
+            png = _plot(fit, seg, result, out / f"{stem}_fit.png")
+            result["plot"] = str(png) if png else None
+            json_path.write_text(json.dumps(result, indent=2))
+            _print(result, json_path)
+            if not result["converged"]:
+                status = 1
+        return status
+    except _BadInput as exc:
+        print(f"jaxcontact: error: {exc}", file=sys.stderr)
+        return 2
+
+
+def _print(r, json_path):
+    p = r["parameters"]
+
+    def fmt(e):
+        return f"{e['value']:.4g} +- {e['std']:.2g}" if e["std"] is not None else (
+            f"{e['value']:.4g} +- inf")
+
+    print(f"{r['file']}: {r['mode']} ({r['fitted']} fitted), {r['arms']} arm(s), "
+          f"{r['samples']} samples, grid {r['grid'][0]}^2")
+    print(f"  g_inf = {fmt(p['g_inf_Pa'])} Pa")
+    for i, (g, tau) in enumerate(zip(p["g_Pa"], p["tau_s"], strict=True), 1):
+        print(f"  g_{i} = {fmt(g)} Pa   tau_{i} = {fmt(tau)} s")
+    hold = r["residual_over_noise_hold"]
+    print(f"  residual RMS {r['residual_rms']:.3g} = {r['residual_over_noise']:.2f} x the "
+          f"noise of the binned data" + (f" (hold: {hold:.2f})" if hold is not None
+                                         else "")
+          + f" (raw noise {r['noise_raw']:.3g}); converged: {r['converged']}")
+    if r["discretisation_rms"] is not None:
+        print(f"  discretisation (grid x2): {r['discretisation_rms']:.3g} RMS "
+              f"({r['discretisation_rms'] / r['residual_rms']:.2f} x the residual)")
+    if len(r["information_criteria"]) > 1:
+        for k, v in r["information_criteria"].items():
+            print(f"  {k} arm(s): AIC {v['aic']:.1f}  BIC {v['bic']:.1f}")
+    print(f"  note: {RADIUS_NOTE}")
+    print(f"  -> {json_path}" + (f", {r['plot']}" if r["plot"] else ""))
