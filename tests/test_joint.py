@@ -29,6 +29,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import hertz_radius, same
 
 import jaxcontact as jc
 from jaxcontact._solve import _Controls, default_solver
@@ -39,15 +40,6 @@ from jaxcontact._solver.precondition import block_preconditioner, continuum_symb
 R, W, G, NU, MU = 10e-3, 0.15, 1e6, 0.3, 0.3
 RTOL = 1e-8
 N = 32
-
-
-def same(n):
-    """Agreement of two solutions of one discrete problem (relative to max p)."""
-    return 2 * RTOL * n
-
-
-def hertz_radius():
-    return float(jc.Hertz(R, W, G, NU).contact_radius)
 
 
 def slip_distance():

@@ -37,6 +37,15 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 import reference_dense as rd
+from helpers import (
+    SOLUTION_FIELDS,
+    as_np,
+    check_converged,
+    equivalent_radius,
+    hertz_radius,
+    radii,
+    same,
+)
 
 import jaxcontact as jc
 
@@ -45,41 +54,11 @@ R, W, G, NU, MU = 10e-3, 0.15, 1e6, 0.3, 0.3
 RTOL = 1e-8  # jc.solve's default in float64
 
 
-def same(n):
-    """Tolerance (relative to max p, mu max p) between two solutions of one discrete
-    problem on an n x n grid, each within ~rtol * n of the exact one."""
-    return 2 * RTOL * n
-
-
-def hertz_radius(nu=NU, w=W):
-    return float(jc.Hertz(R, w, G, nu).contact_radius)
-
-
 def scene(n, times, *, nu=NU, mu=MU, span=4.0, **kwargs):
     grid = jc.Grid((n, n), span * hertz_radius(nu))
     return jc.Scene(
         grid, jc.Sphere(R), jc.Elastic(G, nu), times=times, friction=mu, **kwargs
     )
-
-
-def radii(grid):
-    x, y = (np.asarray(c) for c in grid.coordinates())
-    return x, y, np.hypot(x, y)
-
-
-def equivalent_radius(mask, grid):
-    """Radius of the disc with the area of `mask` [length]."""
-    return float(np.sqrt(np.sum(mask) * float(grid.cell_area) / np.pi))
-
-
-def as_np(sol):
-    return jax.tree_util.tree_map(np.asarray, sol)
-
-
-def check_converged(sol):
-    assert np.all(sol.converged), (sol.converged, sol.residual, sol.iterations)
-    for name in ("pressure", "shear", "approach", "tangential_displacement"):
-        assert np.all(np.isfinite(getattr(sol, name))), name
 
 
 # ------------------------------------------------------------------ cached solutions
@@ -100,7 +79,7 @@ def cattaneo_mindlin_128():
         coupling="none",
     )
     sol = as_np(jc.solve(sc))
-    check_converged(sol)
+    check_converged(sol, SOLUTION_FIELDS)
     return sc, sol, ratios
 
 
@@ -122,7 +101,7 @@ def normal_ramp(m, nu=NU, mu=MU, slip="incremental"):
         slip=slip,
     )
     sol = as_np(jc.solve(sc))
-    check_converged(sol)
+    check_converged(sol, SOLUTION_FIELDS)
     return sc, sol, loads
 
 
@@ -145,7 +124,7 @@ def coupled_history(direction="x", nu=NU):
         **kw,
     )
     sol = as_np(jc.solve(sc))
-    check_converged(sol)
+    check_converged(sol, SOLUTION_FIELDS)
     forces = np.zeros((HIST_NT, 2))
     forces[:, "xy".index(direction)] = HIST_F
     return sc, sol, HIST_W, forces
@@ -171,7 +150,7 @@ def uncoupled_history(amplitudes=tuple(OBLIQUE_AMP), degrees=tuple(OBLIQUE_DEG),
         coupling="none",
     )
     sol = as_np(jc.solve(sc))
-    check_converged(sol)
+    check_converged(sol, SOLUTION_FIELDS)
     return sc, sol, HIST_W, forces
 
 
@@ -265,7 +244,7 @@ def test_cattaneo_mindlin_stick_radius():
     for k in range(1, len(ratios)):
         stick = sol.stick[k]
         c_th = a * (1 - ratios[k]) ** (1 / 3)
-        c_area = equivalent_radius(stick, sc.grid)
+        c_area = equivalent_radius(stick, sc.grid.cell_area)
         assert abs(c_area - c_th) <= dx, (k, (c_area - c_th) / dx)
         for j in (n // 2 - 1, n // 2):  # rows at y = -dx/2, +dx/2
             xs = x[stick[:, j], j]
@@ -425,7 +404,7 @@ def test_coupled_normal_load_stick_disc():
     assert r[slip].max() == r[contact].max()
     # axisymmetric within a cell: every boundary cell of the stick zone (a stick cell
     # with a non-stick neighbour) lies within one cell of the equivalent radius
-    c = equivalent_radius(stick, sc.grid)
+    c = equivalent_radius(stick, sc.grid.cell_area)
     neighbour_free = np.zeros_like(stick)
     for shift, axis in ((1, 0), (-1, 0), (1, 1), (-1, 1)):
         neighbour_free |= ~np.roll(stick, shift, axis=axis)
@@ -617,7 +596,7 @@ def test_dense_reference_coupled_ramp():
     )
     np.testing.assert_allclose(np.asarray(sc.indenter.gap(sc.grid)), h0, rtol=1e-13)
     sol = as_np(jc.solve(sc, rtol=1e-10))
-    check_converged(sol)
+    check_converged(sol, SOLUTION_FIELDS)
     dp, dq, n_diff = compare_with_dense(sol, ref, MU)
     assert dp <= 1e-8 and dq <= 1e-8, (dp, dq)
     assert n_diff <= 8
@@ -646,7 +625,7 @@ def test_dense_reference_cattaneo_mindlin():
         coupling="none",
     )
     sol = as_np(jc.solve(sc, rtol=1e-10))
-    check_converged(sol)
+    check_converged(sol, SOLUTION_FIELDS)
     dp, dq, n_diff = compare_with_dense(sol, ref, MU)
     assert dp <= 1e-8 and dq <= 1e-8, (dp, dq)
     assert n_diff <= 8
@@ -679,7 +658,7 @@ def test_displacement_ramp_to_gross_sliding():
         coupling="none",
     )
     sol = as_np(jc.solve(sc))
-    check_converged(sol)
+    check_converged(sol, SOLUTION_FIELDS)
     np.testing.assert_allclose(
         sol.tangential_displacement[:, 0], deltas, rtol=0, atol=1e-12 * d_s
     )
@@ -828,7 +807,7 @@ def test_gross_sliding_load_control():
     _, sol, _, _ = uncoupled_history(tuple(amp), tuple(np.full(HIST_NT, 30.0)))
     sol_c = coupled_history_gross()
     for s, direction in ((sol, np.deg2rad(30.0)), (sol_c, 0.0)):
-        check_converged(s)
+        check_converged(s, SOLUTION_FIELDS)
         e = np.array([np.cos(direction), np.sin(direction)])
         sliding = amp > 1
         np.testing.assert_array_equal(s.sliding, sliding)
@@ -865,7 +844,7 @@ def test_zero_friction_skips_tangential_solve():
     )
     assert sc.tangential_directions == 0
     sol = as_np(jc.solve(sc))
-    check_converged(sol)
+    check_converged(sol, SOLUTION_FIELDS)
     assert np.all(sol.shear == 0) and np.all(sol.tangential_force == 0)
     assert not sol.stick.any() and np.all(sol.stick_ratio == 0)
     assert not sol.sliding.any()
@@ -888,7 +867,7 @@ def test_no_tangential_input_uncoupled_skips_tangential_solve():
     )
     assert sc.tangential_directions == 0
     sol = as_np(jc.solve(sc))
-    check_converged(sol)
+    check_converged(sol, SOLUTION_FIELDS)
     assert np.all(sol.shear == 0) and np.all(sol.tangential_force == 0)
     assert np.all(sol.stick == sol.contact) and np.all(sol.stick_ratio == 1)
     assert not sol.sliding.any()

@@ -8,6 +8,7 @@ cells, the contact conditions are checked pointwise to near round-off.
 import numpy as np
 import pytest
 import reference_dense as rd
+from helpers import equivalent_radius
 
 from jaxcontact import influence_coefficients
 
@@ -26,10 +27,6 @@ def setup(n, nu, span=2.5):
     a = hertz_radius(W0, nu)
     size = span * a
     return a, size, rd.sphere_gap(n, size, R), rd.dense_influence(n, size, nu)
-
-
-def equivalent_radius(mask, res):
-    return np.sqrt(mask.sum() * res["cell_area"] / np.pi)
 
 
 def assert_conditions(res, k, coulomb=True):
@@ -101,7 +98,7 @@ def test_hertz_frictionless():
     assert_conditions(res, 0, coulomb=False)
     np.testing.assert_allclose(res["W"][0], W0, rtol=1e-13)
     assert np.all(res["q"] == 0)
-    a_num = equivalent_radius(res["contact"][0], res)
+    a_num = equivalent_radius(res["contact"][0], res["cell_area"])
     assert abs(a_num - a) <= dx, (a_num / dx, a / dx)
     np.testing.assert_allclose(res["delta_z"][0], a * a / R, rtol=0.02)
     # displacement control at the approach found reproduces the pressure
@@ -133,7 +130,7 @@ def test_cattaneo_mindlin(nu, coupling):
     np.testing.assert_allclose(res["W"], W0, rtol=1e-13)
     np.testing.assert_allclose(res["Fx"], [0.0, F], rtol=1e-10, atol=1e-12 * mu * W0)
     assert abs(res["Fy"][1]) <= 1e-12 * mu * W0
-    c_num = equivalent_radius(res["stick"][1], res)
+    c_num = equivalent_radius(res["stick"][1], res["cell_area"])
     c_th = a * (1 - F / (mu * W0)) ** (1 / 3)
     assert abs(c_num - c_th) <= 1.5 * dx, (c_num - c_th) / dx
     d_th = 3 * mu * W0 * (2 - nu) / (16 * G * a) * (1 - (1 - F / (mu * W0)) ** (2 / 3))

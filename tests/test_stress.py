@@ -33,6 +33,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import as_np
 
 import jaxcontact as jc
 
@@ -47,10 +48,6 @@ MU_INF, NU, R, W = 1.93e6, 0.3, 10e-3, 0.15  # the paper's Table 2 (true shear m
 TAU = 0.01
 A0 = float(jc.Hertz(R, W, MU_INF, NU).contact_radius)
 N = 16
-
-
-def as_np(tree):
-    return jax.tree_util.tree_map(np.asarray, tree)
 
 
 def finite(sol):

@@ -18,6 +18,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import zener
 
 import jaxcontact as jc
 
@@ -27,10 +28,6 @@ MU_0 = (0.25e6, 0.5e6, 1.0e6)  # Pa: three Zener materials (paper Eqs. 29-30 fam
 # Three steps of 2/3 tau: too long for the piecewise-constant scheme with these
 # materials (jc.TimeStepWarning); the piecewise-linear one is stable.
 SCHEME = "linear"
-
-
-def zener(mu_0):
-    return jc.Zener(mu_inf=1.93e6, mu_0=mu_0, tau=0.01, poisson=0.3)
 
 
 def base_scene():

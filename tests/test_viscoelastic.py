@@ -54,6 +54,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import as_np, check_converged, equivalent_radius, radii, zener
 
 import jaxcontact as jc
 from jaxcontact._history import ElasticHistory, RecursiveHistory
@@ -89,10 +90,6 @@ def maxwell():
     return jc.Maxwell(T1_G, T1_ETA, T1_NU)
 
 
-def zener(ratio, nu=T2_NU):
-    return jc.Zener(T2_MU_INF, T2_MU_INF / ratio, T2_TAU, nu)
-
-
 def pmma():
     return jc.Prony(PMMA_G_INF, jnp.asarray(PMMA_G), jnp.asarray(PMMA_TAU), PMMA_NU)
 
@@ -102,31 +99,6 @@ def t2_hertz():
 
 
 # ---- Helpers -------------------------------------------------------------------------
-
-
-def as_np(sol):
-    return jax.tree_util.tree_map(np.asarray, sol)
-
-
-def check_converged(sol):
-    bad = np.flatnonzero(~np.asarray(sol.converged))
-    assert bad.size == 0, (
-        f"steps {bad.tolist()} not converged: "
-        f"residual {np.asarray(sol.residual)[bad]}, "
-        f"iterations {np.asarray(sol.iterations)[bad]}, "
-        f"rounds {np.asarray(sol.rounds)[bad]}"
-    )
-
-
-def equivalent_radius(sol, grid):
-    """Contact radius of each step from the contact area, `sqrt(A / pi)` [length]."""
-    n = np.asarray(sol.contact).sum(axis=(1, 2))
-    return np.sqrt(n * float(grid.cell_area) / np.pi)
-
-
-def radii(grid):
-    x, y = (np.asarray(c) for c in grid.coordinates())
-    return np.hypot(x, y)
 
 
 def centre_pressure(sol, grid):
@@ -141,7 +113,7 @@ def centre_pressure(sol, grid):
 def ring_profile(grid, pressure, a):
     """Ring averages of a pressure field over annuli of width dx inside r < a - dx:
     (mean radius, mean pressure) per ring."""
-    r = radii(grid)
+    _, _, r = radii(grid)
     dx = float(grid.spacing[0])
     ring = np.floor(r / dx).astype(int)
     out_r, out_p = [], []
@@ -253,7 +225,7 @@ def test_maxwell_contact_radius_and_approach_follow_lee_radok():
     check_converged(sol)
     dx = float(grid.spacing[0])
     a_ref = np.array([ref.contact_radius(t) for t in times])
-    a_num = equivalent_radius(sol, grid)
+    a_num = equivalent_radius(sol.contact, grid.cell_area)
     # Within one cell at every step (measured: <= 0.21 cells; a grows 117 -> 169 um,
     # 29 -> 42 cells).
     assert np.max(np.abs(a_num - a_ref)) <= dx, (a_num - a_ref) / dx
@@ -268,7 +240,7 @@ def test_maxwell_pressure_profile_matches_lee_radok(t):
     grid, times, sol, ref = maxwell_case()
     k = int(np.argmin(np.abs(times - t)))
     p0 = float(jc.Hertz(T1_R, T1_W, T1_G, T1_NU).peak_pressure)
-    r = radii(grid)
+    _, _, r = radii(grid)
     p_ref = ref.pressure(r.ravel(), times[k]).reshape(r.shape)
     err = np.abs(sol.pressure[k] - p_ref) / p0
     a = ref.contact_radius(times[k])
@@ -311,7 +283,7 @@ def test_maxwell_edge_spike_appears_after_one_relaxation_time():
     # at 2 tau (Lee & Radok: r = 0.89 a; within 2 cells). At 2 tau the peak and centre
     # pressures each match Lee & Radok within 1.5 % p0 (measured 0.5 % and 0.6 %), and
     # the peak is > 1.15 x the centre pressure (Lee & Radok 1.225, measured 1.266).
-    r = radii(grid)
+    _, _, r = radii(grid)
     for t, off_centre in ((0.5, False), (1.0, False), (2.0, True)):
         k = int(np.argmin(np.abs(times - t)))
         a = ref.contact_radius(times[k])
@@ -341,10 +313,12 @@ def zener_case(ratio, scheme):
     a0 = float(t2_hertz().contact_radius)
     grid = jc.Grid((ZENER_N, ZENER_N), 5.5 * a0)  # the paper's 5.5 a0 square
     times = jnp.linspace(0.0, 3 * T2_TAU, ZENER_NT)
-    scene = jc.Scene(grid, jc.Sphere(T2_R), zener(ratio), times, normal=jc.Force(T2_W))
+    scene = jc.Scene(
+        grid, jc.Sphere(T2_R), zener(ratio=ratio), times, normal=jc.Force(T2_W)
+    )
     sol = as_np(jc.solve(scene, scheme=scheme))
     ref = jc.LeeRadok(
-        T2_R, T2_NU, zener(ratio), lambda t: T2_W * (t >= 0), samples=1000
+        T2_R, T2_NU, zener(ratio=ratio), lambda t: T2_W * (t >= 0), samples=1000
     )
     return grid, np.asarray(times), sol, ref
 
@@ -357,7 +331,7 @@ def test_zener_step_load_follows_lee_radok(ratio, scheme):
     dx = float(grid.spacing[0])
     p0 = float(t2_hertz().peak_pressure)
     a_ref = np.array([ref.contact_radius(t) for t in times])
-    a_num = equivalent_radius(sol, grid)
+    a_num = equivalent_radius(sol.contact, grid.cell_area)
     # a(t): within one cell (measured <= 0.21 cells; a grows by ratio^(1/3) at most).
     assert np.max(np.abs(a_num - a_ref)) <= dx, (a_num - a_ref) / dx
     # delta(t) = a(t)^2 / R: relative error <= 1e-3 (measured <= 8.3e-5).
@@ -389,7 +363,7 @@ RELAX_N, RELAX_NT = 64, 41  # T = 3 tau
 
 def relaxation_material(name):
     if name == "zener":
-        return zener(4)
+        return zener(ratio=4)
     # A 2-term Prony solid: G(t) = mu (1/4 + 1/4 e^{-t/0.002} + 1/2 e^{-t/0.01}).
     return jc.Prony(
         T2_MU_INF / 4,
@@ -640,7 +614,8 @@ def test_pmma_triangular_load_loading_lee_radok_unloading_ting(scheme):
     dx = float(grid.spacing[0])
     w = 10 * times - 20 * (times - 10) * (times > 10)
     np.testing.assert_allclose(sol.normal_force, w, atol=1e-8 * 100)
-    a_num, a_ref = equivalent_radius(sol, grid), ref.contact_radius(times)
+    a_num = equivalent_radius(sol.contact, grid.cell_area)
+    a_ref = ref.contact_radius(times)
     d_num, d_ref = sol.approach, ref.approach(times)
     d_max = d_ref.max()
     loading, unloading = times <= ref.t_m, times > ref.t_m
@@ -706,7 +681,7 @@ def constant_input_case(kind):
     grid = jc.Grid((CONST_N, CONST_N), 5.5 * a0)
     times = jnp.linspace(0.0, 2 * T2_TAU, CONST_NT)
     common = dict(friction=CONST_MU, coupling="full")
-    base = functools.partial(jc.Scene, grid, jc.Sphere(T2_R), zener(4), times)
+    base = functools.partial(jc.Scene, grid, jc.Sphere(T2_R), zener(ratio=4), times)
     if kind == "LC":
         scene = base(normal=jc.Force(T2_W), x=jc.Force(0.5 * CONST_MU * T2_W), **common)
         return grid, np.asarray(times), scene, as_np(jc.solve(scene))
@@ -840,7 +815,7 @@ def test_constant_tangential_displacement_relaxes():
     fx = sol.tangential_force[:, 0]
     np.testing.assert_allclose(fx[0], 0.5 * CONST_MU * T2_W, rtol=1e-6)
     assert np.all(np.diff(fx) < 0), fx
-    material = zener(4)
+    material = zener(ratio=4)
     g_ratio = float(material.relaxation(times[-1]) / material.relaxation(0.0))
     assert abs(fx[-1] / fx[0] - g_ratio) <= 0.02, (fx[-1] / fx[0], g_ratio)
     # Same first step as LC (same elastic problem).
@@ -868,7 +843,7 @@ def test_constant_displacements_relax_self_similarly():
     the contact and (with the paper's total-slip law) the stick zone are fixed."""
     grid, times, scene, sol = constant_input_case("REL")
     check_converged(sol)
-    g = discrete_relaxation(zener(4), times, "constant")
+    g = discrete_relaxation(zener(ratio=4), times, "constant")
     np.testing.assert_allclose(sol.normal_force / sol.normal_force[0], g, atol=1e-6)
     np.testing.assert_allclose(
         sol.tangential_force[:, 0] / sol.tangential_force[0, 0], g, atol=1e-6
@@ -898,7 +873,7 @@ def test_normal_load_alone_stick_ratio_insensitive_to_ratio():
         scene = jc.Scene(
             grid,
             jc.Sphere(T2_R),
-            zener(ratio),
+            zener(ratio=ratio),
             times,
             normal=jc.Force(T2_W),
             friction=CONST_MU,
@@ -925,7 +900,7 @@ def _order_run(n, nt, scheme):
     # scheme: the approach follows int J dW, measured error 1e-10 at every Nt).
     load = jc.Force(lambda t: T2_W * jnp.sin(jnp.pi * t / (2 * t_end)))
     sol = jc.solve(
-        jc.Scene(grid, jc.Sphere(T2_R), zener(4), times, normal=load),
+        jc.Scene(grid, jc.Sphere(T2_R), zener(ratio=4), times, normal=load),
         scheme=scheme,
         history="recursive",
     )
@@ -1006,7 +981,7 @@ def test_elastic_material_carries_no_history():
     assert hist.init((3, 8, 8), jnp.float64) == ()
     assert hist.prepare((), jnp.zeros((3, 8, 8)), 0, 0.1).traction is None
     # A Zener material takes the recursion, with m + 1 = 2 fields.
-    rec = _history_for(zener(4), times, "auto", "constant")
+    rec = _history_for(zener(ratio=4), times, "auto", "constant")
     assert isinstance(rec, RecursiveHistory)
     assert len(jax.tree_util.tree_leaves(rec.init((3, 8, 8), jnp.float64))) == 2
 
