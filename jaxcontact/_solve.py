@@ -16,7 +16,7 @@ from ._loading import Force
 from ._material.elastic import Elastic
 from ._operator import HalfSpace
 from ._scene import Scene, normal_targets, tangential_targets
-from ._solution import Solution
+from ._solution import RESULTS, Solution
 from ._solver.base import AbstractStepSolver, StepGuess, StepProblem
 from ._solver.fallback import Fallback
 from ._solver.implicit import ImplicitAdjoint, differentiable_step, empty_seed
@@ -196,18 +196,28 @@ def _solve(scene: Scene, operator: HalfSpace, controls: _Controls,
         result=res.result,
         fallbacks=res.fallbacks,
     )
-    if throw:
-        sol = _raise_on_failure(sol)
     return sol
+
+
+def _first_failure(sol: Solution):
+    """`(any step failed, the RESULTS item of the first that did)`."""
+    failed = ~sol.converged
+    first = jnp.argmax(failed)
+    return jnp.any(failed), jax.tree.map(lambda v: v[first], sol.result)
 
 
 def _raise_on_failure(sol: Solution) -> Solution:
     """`sol`, raising the message of the first step's failure (`RESULTS`) if any step
-    did not converge (at run time: works under `jit`, `vmap` and `grad`)."""
-    failed = ~sol.converged
-    first = jnp.argmax(failed)
-    item = jax.tree.map(lambda v: v[first], sol.result)
-    return item.error_if(sol, jnp.any(failed))
+    did not converge: at once for a concrete solution (no host callback in the
+    compiled program), at run time (`eqx.error_if`) under `jit`, `vmap` or `grad`."""
+    any_failed, item = _first_failure(sol)
+    if _validate.is_traced(sol):
+        return item.error_if(sol, any_failed)
+    if bool(any_failed):
+        step = int(jnp.argmax(~sol.converged))
+        raise ValueError(f"{RESULTS[item]}\n(time step {step} of {sol.times.shape[0]}; "
+                         "jc.solve(..., throw=False) returns the flags instead)")
+    return sol
 
 
 def _warn_unstable_steps(material, times):
@@ -367,4 +377,4 @@ def solve(
                      progress)
         if not _validate.is_traced(sol):
             jax.block_until_ready(sol)
-    return sol
+    return _raise_on_failure(sol) if throw else sol
