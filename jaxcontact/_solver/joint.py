@@ -59,8 +59,13 @@ from .._solution import RESULTS
 from .base import AbstractStepSolver, make_result, run, step_outcome
 from .base import safe_div as _safe_div
 from .precondition import block_preconditioner
+from .residual import (
+    coulomb_residual,
+    gap_residual,
+    rigid_tangential_displacement,
+)
 from .tangential import dot as _dot
-from .tangential import gross_sliding, slip_multiplier
+from .tangential import gross_sliding
 from .tangential import solve_small as _solve_small
 
 
@@ -300,45 +305,20 @@ class _JointOperator:
         fc, area = self.fc, self.area
         tangential_target = self.tangential_target
         p, q = x[0], x[1:]
-        contact = p > 0
-        n_contact = jnp.sum(contact)
-        raw = self.h + u[0]
-        if self.load_n:
-            dz = jnp.where(
-                n_contact > 0,
-                _safe_div(jnp.sum(jnp.where(contact, raw, 0)), n_contact),
-                jnp.min(raw))
-        else:
-            dz = self.normal_target
-        g = raw - dz
-        violation = jnp.where(contact, g, jnp.minimum(g, 0))
-        num = jnp.sqrt(jnp.sum(violation * violation))
-        scale = scales[0]
-        res_n = jnp.where(num == 0, 0.0, num / jnp.where(scale > 0, scale, jnp.inf))
-        res_n = jnp.where((num > 0) & (scale == 0), jnp.inf, res_n)
-
+        g, dz, res_n = gap_residual(self.h + u[0], p > 0, self.load_n,
+                                    self.normal_target, scales[0])
         contact_t = bound > 0
         w = u[1:] + self.b
         stick = self.stick_of(q, bound)
-        n_stick = jnp.sum(stick)
-        mean_stick = _safe_div(_sum2(jnp.where(stick[None], w, 0)), n_stick)
         inv = _inv_norm(q)
-        all_slip = slip_multiplier(w, q * inv[None], contact_t, fc, tangential_target)
-        multiplier = jnp.where(n_stick > 0, mean_stick, all_slip)
-        dt = jnp.where(fc, multiplier, tangential_target)
+        dt = rigid_tangential_displacement(w, stick, q * inv[None], contact_t, fc,
+                                           tangential_target)
         ds = w - dt[:, None, None]
         ds_mag = jnp.sqrt(_dot(ds, ds))
         slip_violation = ds + (ds_mag * inv)[None] * q
-        violation = jnp.where(stick[None], ds,
-                              jnp.where(contact_t[None], slip_violation, 0))
-        num = jnp.sqrt(jnp.sum(violation * violation))
-        res_t = jnp.where(num == 0, 0.0, _safe_div(num, scales[1]))
-        res_t = jnp.where((num > 0) & (scales[1] == 0), jnp.inf, res_t)
-        bound_total = area * jnp.sum(bound)
-        load_err = jnp.abs(area * _sum2(q) - tangential_target)
-        load_err = jnp.where(fc, _safe_div(load_err, bound_total), 0.0)
-        res_t = jnp.maximum(res_t, jnp.max(load_err))
-        res_t = jnp.where((bound_total > 0) & ~sliding, res_t, 0.0)
+        res_t = coulomb_residual(ds, slip_violation, stick, contact_t, scales[1],
+                                 area * _sum2(q), tangential_target, fc,
+                                 area * jnp.sum(bound), sliding)
         return _Evaluation(g=g, dz=dz, res_n=res_n, ds=ds, dt=dt, stick=stick,
                            res_t=res_t, residual=jnp.maximum(res_n, res_t), inv_norm=inv)
 

@@ -51,6 +51,7 @@ from jaxtyping import Array, Bool, Float, Int
 from .base import AbstractStepSolver, StepGuess, loop, make_result
 from .base import safe_div as _safe_div
 from .precondition import continuum_symbols, padded_inverse, unpadded_inverse
+from .residual import gap_residual
 
 
 def inverse_preconditioner(operator, spectrum, poisson=None):
@@ -118,26 +119,9 @@ class NormalState(NamedTuple):
 
 
 def _evaluate(h, u, p, target, load_control):
-    """Gap, approach and residual for the pressure `p` with displacement `u`."""
-    contact = p > 0
-    n_contact = jnp.sum(contact)
-    raw = h + u
-    if load_control:
-        delta = jnp.where(
-            n_contact > 0,
-            _safe_div(jnp.sum(jnp.where(contact, raw, 0)), n_contact),
-            jnp.min(raw),
-        )
-    else:
-        delta = target
-    g = raw - delta
-    violation = jnp.where(contact, g, jnp.minimum(g, 0))
-    scale = jnp.sqrt(jnp.sum(u * u))
-    num = jnp.sqrt(jnp.sum(violation * violation))
-    residual = jnp.where(num == 0, 0.0, num / jnp.where(scale > 0, scale, jnp.inf))
-    # A non-zero violation with zero displacement (p = 0 but penetration) is not converged.
-    residual = jnp.where((num > 0) & (scale == 0), jnp.inf, residual)
-    return g, delta, residual
+    """Gap, approach and residual for the pressure `p` with displacement `u`
+    (`residual.gap_residual`, scaled by the displacement `||u||`)."""
+    return gap_residual(h + u, p > 0, load_control, target, jnp.sqrt(jnp.sum(u * u)))
 
 
 class NormalOperator:

@@ -96,12 +96,12 @@ class _RoundsOperator:
         b = self.ut_from_pressure(p) + pr.history[:self.nd] - pr.previous_slip
         target = pr.tangential_target
 
-        def cg():
+        def cg(skip=False):
             return tangential_cg(
                 self.apply_tangential, b, bound, pr.tangential_force_control, target,
                 area, self.self_compliance, q0=q_start, rtol=self.rtol,
                 max_steps=s.max_steps, resync_every=s.resync_every,
-                precondition=self.precondition_t)
+                precondition=self.precondition_t, skip=skip)
 
         if not self.all_force:
             return cg()
@@ -122,7 +122,11 @@ class _RoundsOperator:
                 residual=jnp.zeros((), self.dtype), converged=jnp.array(True),
                 applications=jnp.array(1))
 
-        return jax.lax.cond(gross_sliding(f_norm, limit, self.rtol), slide, cg)
+        sliding = gross_sliding(f_norm, limit, self.rtol)
+        # Under `vmap` the `cond` runs both branches for every member: the CG of a
+        # sliding member (no static solution) stops at its first iterate (`skip`)
+        # instead of running to `max_steps`. Unbatched, only one branch runs.
+        return jax.lax.cond(sliding, slide, lambda: cg(skip=sliding))
 
     def round_(self, p, q, iterations, rounds):
         normal = self.solve_normal(self.h + self.uz_from_shear(q), p)

@@ -8,6 +8,8 @@ from typing import NamedTuple
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
+from .base import safe_div as _safe_div
+
 
 class TangentialState(NamedTuple):
     shear: Float[Array, "nd nx ny"]
@@ -19,11 +21,6 @@ class TangentialState(NamedTuple):
     residual: Float[Array, ""]
     converged: Bool[Array, ""]
     applications: Int[Array, ""]
-
-
-def _safe_div(a, b):
-    ok = b != 0
-    return jnp.where(ok, a / jnp.where(ok, b, 1), jnp.zeros_like(a))
 
 
 # Vector fields are (nd, nx, ny). Component sums are written out: XLA:CPU runs a

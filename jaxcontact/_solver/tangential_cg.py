@@ -47,7 +47,8 @@ from jaxtyping import Array, Bool, Float, Int
 
 from .base import AbstractStepSolver, loop
 from .base import safe_div as _safe_div
-from .tangential import TangentialState, dot, project, slip_multiplier
+from .residual import coulomb_residual, rigid_tangential_displacement
+from .tangential import TangentialState, dot, project
 
 
 def _norm(q):
@@ -59,7 +60,7 @@ class TangentialOperator:
     """What a tangential solve holds fixed (see `tangential_cg` for the arguments)."""
 
     def __init__(self, apply_fn, b, bound, force_control, target, cell_area,
-                 self_compliance, *, rtol, precondition=None):
+                 self_compliance, *, rtol, precondition=None, skip=False):
         self.nd = nd = b.shape[0]
         if precondition is not None and nd != 1:
             raise ValueError(
@@ -74,6 +75,7 @@ class TangentialOperator:
         self.self_compliance = self_compliance
         self.rtol = rtol
         self.precondition = precondition
+        self.skip = skip  # stop at the first iterate (a batch member with no solution)
         self.contact = bound > 0
         self.bound_total = cell_area * jnp.sum(bound)  # mu W
 
@@ -91,28 +93,18 @@ class TangentialOperator:
 
     def evaluate(self, q, w):
         """`(ds, delta, stick, residual)` at the shear `q` with displacement `w`."""
-        b, contact, fc, target = self.b, self.contact, self.fc, self.target
+        b, contact, target = self.b, self.contact, self.target
         stick = self.stick_of(q)
-        n_stick = jnp.sum(stick)
-        mean_stick = _safe_div(jnp.sum(jnp.where(stick[None], w, 0), axis=(1, 2)), n_stick)
-        mag_q = _norm(q)
-        q_hat = q * _safe_div(1.0, mag_q)[None]
-        all_slip = slip_multiplier(w, q_hat, contact, self.force_control, target)
-        multiplier = jnp.where(n_stick > 0, mean_stick, all_slip)
-        delta = jnp.where(fc, multiplier, target)
+        q_hat = q * _safe_div(1.0, _norm(q))[None]
+        delta = rigid_tangential_displacement(w, stick, q_hat, contact,
+                                              self.force_control, target)
         ds = w - delta[:, None, None]
         slip_violation = ds + _norm(ds)[None] * q_hat
-        violation = jnp.where(stick[None], ds, jnp.where(contact[None], slip_violation, 0))
         scale = (jnp.sqrt(jnp.sum((w - b) ** 2))
                  + jnp.sqrt(jnp.sum(jnp.where(contact[None], b, 0) ** 2)))
-        num = jnp.sqrt(jnp.sum(violation * violation))
-        res = jnp.where(num == 0, 0.0, _safe_div(num, scale))
-        res = jnp.where((num > 0) & (scale == 0), jnp.inf, res)
-        load_err = jnp.abs(self.cell_area * jnp.sum(q, axis=(1, 2)) - target)
-        load_err = jnp.where(fc, _safe_div(load_err, self.bound_total), 0.0)
-        res = jnp.maximum(res, jnp.max(load_err))
-        # Nothing can carry shear: the (zero) solution is exact.
-        res = jnp.where(self.bound_total > 0, res, 0.0)
+        res = coulomb_residual(ds, slip_violation, stick, contact, scale,
+                               self.cell_area * jnp.sum(q, axis=(1, 2)), target,
+                               self.fc, self.bound_total)
         return ds, delta, stick, res
 
 
@@ -161,7 +153,7 @@ class TangentialCG(AbstractStepSolver):
             applications=jnp.array(1))
 
     def terminate(self, problem, k, s):
-        return s.residual <= k.rtol
+        return (s.residual <= k.rtol) | k.skip
 
     def step(self, problem, k: TangentialOperator, s: _TangentialCGState):
         nd, dtype, bound, rtol = k.nd, k.dtype, k.bound, k.rtol
@@ -285,6 +277,7 @@ def tangential_cg(
     max_steps: int,
     resync_every: int = 25,
     precondition=None,
+    skip=False,
 ) -> TangentialState:
     """Solve the tangential problem (see module docs) with `TangentialCG`.
 
@@ -304,8 +297,11 @@ def tangential_cg(
       (nx, ny)` (`precondition.shear_x_preconditioner`), restricted to the
       stick and released cells and, under load control, made mean-free on them (as
       Polonsky & Keer's normal CG).
+    - `skip`: a (traced) bool: stop at the first iterate (a member of a batch whose
+      answer is taken from elsewhere, e.g. gross sliding).
     """
     k = TangentialOperator(apply_fn, b, bound, force_control, target, cell_area,
-                           self_compliance, rtol=rtol, precondition=precondition)
+                           self_compliance, rtol=rtol, precondition=precondition,
+                           skip=skip)
     solver = TangentialCG(rtol=rtol, max_steps=max_steps, resync_every=resync_every)
     return solver.solve_state(k, jnp.zeros_like(b) if q0 is None else q0)

@@ -1,0 +1,93 @@
+"""A batch with gross-sliding members: `vmap` over friction coefficients against a
+Python loop over the same scenes (issue 31, item 3).
+
+Scene: elastic sphere (R = 10 mm, G = 1.93 MPa, nu = 0.3) on a 32^2 grid of 2.4 mm,
+W = 0.15 N, F_x = 0.02 N in one step, no coupling (the rounds' tangential CG), with
+friction coefficients such that `--sliding` of the `--batch` members slide
+(mu W < F_x). Under `vmap` the rounds' `cond(gross_sliding, slide, cg)` becomes a
+`select` that runs both branches for every member: before the fix the CG of a
+sliding member (no static solution) ran to `max_steps`. Reported: the loop's and the
+batch's time after compilation (best of `--repeats`), their ratio, and the largest
+difference between the two answers.
+
+    python benchmarks/batch_sliding.py [--batch 8] [--sliding 3] [--max-steps 2000]
+
+Results: `benchmarks/results/batch_sliding.json`.
+"""
+
+import argparse
+import json
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+import jax
+
+
+jax.config.update("jax_enable_x64", True)
+
+import jax.numpy as jnp  # noqa: E402
+import numpy as np  # noqa: E402
+
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+import jaxcontact as jc  # noqa: E402
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--batch", type=int, default=8)
+    parser.add_argument("--sliding", type=int, default=3)
+    parser.add_argument("--max-steps", type=int, default=2000)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--out", default=str(ROOT / "benchmarks/results/batch_sliding.json"))
+    args = parser.parse_args()
+    grid = jc.Grid((32, 32), 2.4e-3)
+    w, fx = 0.15, 0.02
+    n_stick = args.batch - args.sliding
+    mus = np.concatenate([np.linspace(0.3, 0.5, n_stick),
+                          np.linspace(0.05, 0.12, args.sliding)])
+
+    def solve(mu):
+        scene = jc.Scene(grid, jc.Sphere(10e-3), jc.Elastic(1.93e6, 0.3), jnp.zeros(1),
+                         jc.Force(w), x=jc.Force(fx), friction=mu)
+        sol = jc.solve(scene, max_steps=args.max_steps, throw=False)
+        return sol.tangential_force[0, 0], sol.sliding[0], sol.iterations[0]
+
+    one = jax.jit(solve)
+    batch = jax.jit(jax.vmap(solve))
+
+    def loop():
+        return [jax.block_until_ready(one(m)) for m in mus]
+
+    def batched():
+        return jax.block_until_ready(batch(jnp.asarray(mus)))
+
+    def best(fn):
+        fn()
+        times = []
+        for _ in range(args.repeats):
+            start = time.perf_counter()
+            out = fn()
+            times.append(time.perf_counter() - start)
+        return min(times), out
+
+    t_loop, looped = best(loop)
+    t_batch, (force, sliding, its) = best(batched)
+    diff = max(abs(float(a[0]) - float(b)) for a, b in zip(looped, force))
+    row = dict(batch=args.batch, sliding_members=int(np.sum(np.asarray(sliding))),
+               max_steps=args.max_steps, loop_s=t_loop, vmap_s=t_batch,
+               vmap_over_loop=t_batch / t_loop, force_difference_N=diff,
+               iterations=np.asarray(its).tolist(), mu=mus.tolist())
+    print(json.dumps(row))
+    Path(args.out).write_text(json.dumps(dict(
+        machine=dict(platform=platform.platform(), processor=platform.processor(),
+                     load_average=os.getloadavg(), jax=jax.__version__),
+        rows=[row]), indent=1))
+
+
+if __name__ == "__main__":
+    main()
