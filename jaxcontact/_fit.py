@@ -133,18 +133,6 @@ class IndentationData(eqx.Module):
         self.force = out["force"]
         self.depth = out["depth"]
 
-    @classmethod
-    def from_file(cls, source, *, n_samples=None, **kwargs) -> "IndentationData":
-        """An AFM force-distance file (or an afmformats curve object) as indentation
-        data in SI units (s, N, m): `jc.read_afm(source, **kwargs).data(n_samples)`
-        (see `jc.read_afm` for the contact point, the segments and the keywords).
-        Needs the optional dependency afmformats (`pip install "jaxcontact[afm]"`).
-        The probe radius is not in the files: give it to the scene
-        (`jc.read_afm(...).scene_template(radius)`)."""
-        from ._afm import read_afm
-
-        return read_afm(source, **kwargs).data(n_samples)
-
 
 # ---------------------------------------------------------------------------------------
 # Parametrisation.
