@@ -145,7 +145,9 @@ def _fit_one(path, args, samples, segments):
     for k in arm_counts:
         if t.size <= 2 * k + 2:
             break
-        fit = jc.fit_prony(data, template, k, lm_steps=args.steps)
+        # bin means of `counts` raw samples: weights sqrt(counts) (inverse noise)
+        fit = jc.fit_prony(data, template, k, lm_steps=args.steps,
+                           weights=np.sqrt(counts))
         aic, bic = _information(fit, 1 + 2 * k)
         fits[k] = (fit, aic, bic)
     if not fits:

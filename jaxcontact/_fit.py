@@ -288,7 +288,8 @@ class PronyFit(eqx.Module):
     - `loss`: the final loss (mean squared residual relative to `rms(target)`).
     - `loss_history`: loss at the start and after every accepted Adam and L-BFGS
       step (`(n_iter + 1,)`), or (LM) at the start and the end of every LM run.
-    - `optimiser`: `"lm"` or `"lbfgs"`; `adam_steps`, `lbfgs_steps`, `lm_steps`:
+    - `optimiser`: what ran: `"lm"`, `"lbfgs"` or `"lbfgs+lm"` (auto, LM took over);
+      `adam_steps`, `lbfgs_steps`, `lm_steps`:
       iterations taken; `evaluations`: model evaluations outside the LM solve (one
       forward and one adjoint solve each; a whole LM solve counts as one).
     - `converged`: `True` when the result is certified a minimum: the Gauss-Newton
@@ -688,15 +689,21 @@ def fit_prony(
       (`PronyFit.discretisation`).
     - `noise_std`: the data's noise standard deviation [data units] for `std`;
       default: estimated from the residual.
-    - `optimiser`: `"lm"` (Levenberg-Marquardt, `optimistix.LevenbergMarquardt`
-      on the relative residual, Jacobian by reverse mode; at most `lm_steps` steps)
-      or `"lbfgs"` (Adam, then L-BFGS with Armijo backtracking, driven from Python;
-      the arguments `adam_steps` ... `precondition` are for it). Default `"lm"` when
-      optimistix is installed (`pip install "jaxcontact[fit]"`), else `"lbfgs"`.
-      Measured (1-arm ramp-hold-unload, 1 % noise, 16^2; the closed-form stand-in from
-      24 starts 0.2-5x off): LM reaches the minimum from every start; L-BFGS, with
-      its default preconditioning, from a 5x-off start ends at g_1 = 2e-73 Pa,
-      tau_1 = 1e100 s, and on creep data at 2 of 12 starts fails.
+    - `optimiser`: `"auto"` (default), `"lm"` or `"lbfgs"`.
+        - `"lbfgs"`: Adam, then L-BFGS with Armijo backtracking, driven from Python
+          (the arguments `adam_steps` ... `precondition` are for it).
+        - `"lm"`: Levenberg-Marquardt (`optimistix.LevenbergMarquardt` on the
+          relative residual, Jacobian by reverse mode, one compiled solve; at most
+          `lm_steps` steps). Needs optimistix (`pip install "jaxcontact[fit]"`).
+        - `"auto"`: L-BFGS, then LM from its result when that is not certified a
+          minimum (see `PronyFit.converged`) and optimistix is installed.
+      Measured (float64, 2-core CPU shared with other jobs): from the default start
+      on the PMMA step, 64^2 x 40, L-BFGS 8.5 s compiled (9.6 s with compilation), LM
+      84 s (138 s): LM's Jacobian costs one adjoint per sample per step. From far
+      starts (1 arm, 1 % noise, the closed-form stand-in, 24 starts 0.2-5x off) LM
+      reaches the minimum from every start; preconditioned L-BFGS stalls on creep
+      data from 2 of 12 (one at its iteration bound, reported NOT converged), where
+      `"auto"` hands over to LM.
     - `solve_options`: keywords for `jc.solve` (`rtol`, `scheme`, ...). The
       default scheme here is `"linear"` (samples joined by ramps; stable at any step);
       `"constant"` treats every sample as a step, and a fit that ends with a material
@@ -722,9 +729,9 @@ def fit_prony(
     lbfgs_steps = _check_int("lbfgs_steps", lbfgs_steps, 0)
     lm_steps = _check_int("lm_steps", lm_steps, 1)
     if optimiser is None:
-        optimiser = "lm" if _have_optimistix() else "lbfgs"
-    if optimiser not in ("lm", "lbfgs"):
-        raise ValueError(f"optimiser must be 'lm' or 'lbfgs', got {optimiser!r}")
+        optimiser = "auto"
+    if optimiser not in ("auto", "lm", "lbfgs"):
+        raise ValueError(f"optimiser must be 'auto', 'lm' or 'lbfgs', got {optimiser!r}")
     if optimiser == "lm" and not _have_optimistix():
         raise ImportError('optimiser="lm" needs optimistix: pip install "jaxcontact[fit]"')
     if learning_rate is not None and not (
@@ -940,11 +947,6 @@ def fit_prony(
                    f"after {int(steps)} steps")
         return new, bool(ok), message, 0, 0
 
-    if optimiser == "lm":
-        history.append(float(ev.loss(theta)[0]))
-        optimise = lambda theta, adam_steps: optimise_lm(theta)  # noqa: E731
-    theta, _, message, steps_adam, steps_lbfgs = optimise(theta, adam_steps)
-
     # -- Boundary probes ---------------------------------------------------------------
     # Positivity by exp() has a trap: a modulus driven towards 0 (or a relaxation time
     # far outside the data's times) has a vanishing gradient in its log and never
@@ -952,21 +954,51 @@ def fit_prony(
     # default start went to g_inf = 2e-10 Pa, loss 0.098 against 3e-4 at the truth.)
     # So every parameter sitting at such a boundary is moved back inside (a modulus to
     # 1 % or 10 % of the instantaneous one, the others scaled to keep it; a time to the
-    # middle of the data's time scales),
-    # and if that lowers the loss the optimiser restarts there (at most 3 times).
-    restarts = 0
-    while True:
-        probe = _boundary_probe(ev, theta, refs, fit_poisson, data.times)
-        if probe is None or restarts >= _MAX_RESTARTS:
-            break
-        theta, _, message, a_more, l_more = optimise(probe, 0)
-        steps_adam, steps_lbfgs, restarts = steps_adam + a_more, steps_lbfgs + l_more, (
-            restarts + 1)
-    if restarts:
-        message += f" (after {restarts} restart(s) from a parameter at its boundary)"
-    if probe is not None:
-        message += ("; a parameter at a boundary of the parametrisation (a modulus ~ 0 "
-                    "or a time far outside the data's) can still lower the loss")
+    # middle of the data's time scales), and if that lowers the loss the optimiser
+    # restarts there (at most `_MAX_RESTARTS` times).
+    def with_probes(run, theta, adam_steps):
+        theta, _, message, n_adam, n_lbfgs = run(theta, adam_steps)
+        restarts = 0
+        while True:
+            probe = _boundary_probe(ev, theta, refs, fit_poisson, data.times)
+            if probe is None or restarts >= _MAX_RESTARTS:
+                break
+            theta, _, message, a_more, l_more = run(probe, 0)
+            n_adam, n_lbfgs, restarts = n_adam + a_more, n_lbfgs + l_more, restarts + 1
+        if restarts:
+            message += f" (after {restarts} restart(s) from a parameter at its boundary)"
+        if probe is not None:
+            message += ("; a parameter at a boundary of the parametrisation (a modulus ~ "
+                        "0 or a time far outside the data's) can still lower the loss")
+        return theta, message, probe, n_adam, n_lbfgs
+
+    def run_lm(theta, adam_steps):
+        del adam_steps
+        return optimise_lm(theta)
+
+    used = optimiser
+    if optimiser == "lm":
+        history.append(float(ev.loss(theta)[0]))
+        theta, message, probe, steps_adam, steps_lbfgs = with_probes(run_lm, theta, 0)
+    else:
+        theta, message, probe, steps_adam, steps_lbfgs = with_probes(
+            optimise, theta, adam_steps)
+        used = "lbfgs"
+        if optimiser == "auto" and _have_optimistix():
+            # L-BFGS is fast from a good start (64^2 x 40, PMMA step, float64: 8.5 s
+            # against 84 s for LM, whose reverse-mode Jacobian costs one adjoint per
+            # sample per step); LM reaches the minimum from starts where L-BFGS stalls.
+            # So LM takes over where L-BFGS' result is not certified (see below).
+            _, _, c_auto, _ = ev.loss(theta)
+            r_auto = (np.asarray(c_auto) - np.asarray(target)) / np.asarray(scale, float)
+            pred = _predicted_decrease(ev.jacobian(theta, fd_step), r_auto)
+            value_auto = float(np.mean(r_auto**2))
+            floor = 1e-18 if jnp.finfo(dtype).bits >= 64 else 1e-10
+            if probe is not None or not (pred < _GN_TOL or pred * value_auto < floor):
+                theta, message_lm, probe, _, _ = with_probes(run_lm, theta, 0)
+                message = (f"L-BFGS: {message}; not certified (Gauss-Newton predicts "
+                           f"{pred:.2g}), then {message_lm}")
+                used = "lbfgs+lm"
 
     # -- Finish up: curve, sensitivities -------------------------------------------------
     value, grad, curve, ok = ev.loss(theta)
@@ -1054,7 +1086,7 @@ def fit_prony(
         adam_steps=steps_adam,
         lbfgs_steps=steps_lbfgs,
         lm_steps=lm_total,
-        optimiser=optimiser,
+        optimiser=used,
         evaluations=ev.calls,
         converged=converged,
         message=message,
