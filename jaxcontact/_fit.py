@@ -936,7 +936,12 @@ def fit_prony(
         if not np.isfinite(float(ev.loss(theta)[0])):
             raise ValueError(f"the model gives a non-finite loss at the start {init!r}")
         rtol = 1e-8 if jnp.finfo(dtype).bits >= 64 else 1e-4
-        new, ok, steps = _lm_solve(theta, ev.args, rtol, 0.1 * rtol, lm_steps)
+        try:
+            new, ok, steps = _lm_solve(theta, ev.args, rtol, 0.1 * rtol, lm_steps)
+        except eqx.EquinoxRuntimeError as exc:  # a trial made an invalid material
+            first_line = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+            return theta, False, ("Levenberg-Marquardt stopped: a trial step made an "
+                                  f"invalid material ({first_line})"), 0, 0
         ev.calls += 1
         lm_total += int(steps)
         value = float(ev.loss(new)[0])

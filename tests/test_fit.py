@@ -603,3 +603,21 @@ def test_weights():
         z(unweighted), z(weighted))
     with pytest.raises(ValueError, match="weights must be"):
         jc.fit_prony(bad, template, 1, _model=model, weights=-w)
+
+
+def test_an_invalid_trial_material_stops_lm_without_raising(monkeypatch):
+    """Inside the compiled LM solve a trial step can make an invalid material (e.g.
+    two equal relaxation times: the constructor's runtime check fires and raises out
+    of the whole solve). The fit then keeps its start and says so, NOT converged."""
+    import equinox as eqx
+
+    def fails(*args, **kwargs):
+        raise eqx.EquinoxRuntimeError("relaxation times must be distinct")
+
+    monkeypatch.setattr(_fit, "_lm_solve", fails)
+    data, template, model = ramp_hold_unload_case()
+    start = jc.Prony(3e9, jnp.array([0.7e9]), jnp.array([1.5]), NU)
+    fit = jc.fit_prony(data, template, 1, _model=model, init=start, optimiser="lm")
+    assert not fit.converged
+    assert "invalid material (relaxation times must be distinct)" in fit.message
+    np.testing.assert_allclose(params(fit.material), params(start), rtol=1e-12)
