@@ -9,8 +9,8 @@ segments binned (`--samples`: points in the approach, hold and retract after con
 and `jc.fit_prony` fits the series through the full contact model (a sphere of radius
 `R` [m] on an `N x N` grid). Creep files (force clamp) fit the depth under the measured
 force; relaxation files (height clamp) the force under the measured depth. `--arms auto`
-fits 1 to 4 arms and keeps the one with the smallest BIC (AIC and BIC of every count
-are reported).
+fits 1 to 4 arms and keeps the converged one with the smallest BIC (AIC and BIC of
+every count are reported).
 
 Writes `DIR/STEM_fit.json` (parameters with Gauss-Newton standard deviations, the
 residual RMS and noise estimate, convergence, contact point, units) and
@@ -126,6 +126,15 @@ def _correlation(cov):
     return [[float(v) if np.isfinite(v) else None for v in row] for row in c]
 
 
+def _choose(fits):
+    """The arm count with the smallest BIC among the converged fits (an unconverged
+    fit's BIC is not its model's: e.g. a second arm far slower than the hold,
+    degenerate with g_inf), among all when none converged. `fits`: {arms: (fit, aic,
+    bic)}."""
+    converged = [k for k in fits if fits[k][0].converged] or list(fits)
+    return min(converged, key=lambda k: fits[k][2])
+
+
 def _fit_one(path, args, samples, segments):
     import numpy as np
 
@@ -152,7 +161,7 @@ def _fit_one(path, args, samples, segments):
         fits[k] = (fit, aic, bic)
     if not fits:
         raise _BadInput(f"{path}: {t.size} samples are too few to fit")
-    best = min(fits, key=lambda k: fits[k][2])
+    best = _choose(fits)
     fit = fits[best][0]
     disc = None
     if args.check_grid:
@@ -205,7 +214,8 @@ def _fit_one(path, args, samples, segments):
         "residual_over_noise_hold": chi_hold,
         "converged": bool(fit.converged),
         "message": fit.message,
-        "information_criteria": {str(k): {"aic": v[1], "bic": v[2], "loss": v[0].loss}
+        "information_criteria": {str(k): {"aic": v[1], "bic": v[2], "loss": v[0].loss,
+                                          "converged": bool(v[0].converged)}
                                  for k, v in fits.items()},
         "contact_time_s": curve.contact_time,
         "spring_constant_N_per_m": curve.spring_constant,
@@ -314,6 +324,7 @@ def _print(r, json_path):
               f"({r['discretisation_rms'] / r['residual_rms']:.2f} x the residual)")
     if len(r["information_criteria"]) > 1:
         for k, v in r["information_criteria"].items():
-            print(f"  {k} arm(s): AIC {v['aic']:.1f}  BIC {v['bic']:.1f}")
+            print(f"  {k} arm(s): AIC {v['aic']:.1f}  BIC {v['bic']:.1f}"
+                  + ("" if v["converged"] else "  (not converged)"))
     print(f"  note: {RADIUS_NOTE}")
     print(f"  -> {json_path}" + (f", {r['plot']}" if r["plot"] else ""))

@@ -329,3 +329,18 @@ def test_refits_of_the_relaxation_file_from_two_starts_agree():
     std = np.maximum(np.sqrt(np.diag(a.covariance)), np.sqrt(np.diag(b.covariance)))
     assert np.all(np.isfinite(std)) and np.all(std > 0)
     assert np.all(np.abs(np.log(pa / pb)) < 3 * std), (pa, pb, std)
+
+
+def test_fit_command_auto_arms_prefers_converged_fits():
+    from types import SimpleNamespace
+
+    from jaxcontact._cli_fit import _choose
+
+    def f(converged):
+        return SimpleNamespace(converged=converged)
+
+    # BIC: 2 arms best but not converged -> 3 (the best converged)
+    fits = {1: (f(True), 0, -10.0), 2: (f(False), 0, -30.0), 3: (f(True), 0, -20.0)}
+    assert _choose(fits) == 3
+    fits = {1: (f(False), 0, -10.0), 2: (f(False), 0, -30.0)}
+    assert _choose(fits) == 2  # none converged: the smallest BIC
