@@ -157,11 +157,35 @@ def _to_material(theta: dict, refs: dict, fit_poisson: bool) -> Prony:
     g_ref, t_ref = refs["g_ref"], refs["t_ref"]
     poisson = 0.5 * jax.nn.sigmoid(theta["poisson"]) if fit_poisson else refs["poisson"]
     return Prony(
-        g_ref * jnp.exp(theta["g_inf"]),
-        g_ref * jnp.exp(theta["g"]),
-        t_ref * jnp.exp(theta["tau"]),
+        g_ref * jnp.exp(_log_scaled(theta, refs, "g_inf")),
+        g_ref * jnp.exp(_log_scaled(theta, refs, "g")),
+        t_ref * jnp.exp(_log_scaled(theta, refs, "tau")),
         poisson,
     )
+
+
+def _log_scaled(theta, refs, key):
+    """`log(value / reference)` of parameter `key`: `theta[key]` itself, or for a
+    parameter with bounds (`fit_prony(bounds=...)`, held in `refs["bounds"]` as
+    `(lo, hi)` in the same scaled logs) `lo + (hi - lo) sigmoid(theta[key])`."""
+    bounds = refs.get("bounds", {})
+    if key in bounds:
+        lo, hi = bounds[key]
+        return lo + (hi - lo) * jax.nn.sigmoid(theta[key])
+    return theta[key]
+
+
+def _bound_factors(theta, refs):
+    """`d log(value) / d theta` of every leaf of `theta` (1 where unbounded)."""
+    out = {}
+    for key, value in theta.items():
+        if key in refs.get("bounds", {}):
+            lo, hi = refs["bounds"][key]
+            sig = jax.nn.sigmoid(value)
+            out[key] = (hi - lo) * sig * (1 - sig)
+        else:
+            out[key] = jnp.ones_like(value)
+    return out
 
 
 def _to_theta(material: Prony, refs: dict, fit_poisson: bool, dtype) -> dict:
@@ -170,6 +194,11 @@ def _to_theta(material: Prony, refs: dict, fit_poisson: bool, dtype) -> dict:
         "g": jnp.log(jnp.asarray(material.g, dtype) / refs["g_ref"]),
         "tau": jnp.log(jnp.asarray(material.tau, dtype) / refs["t_ref"]),
     }
+    for key, (lo, hi) in refs.get("bounds", {}).items():
+        # the logit coordinate, the start pulled 5 % of the range inside the bounds
+        # (where the sigmoid still has slope)
+        frac = jnp.clip((theta[key] - lo) / (hi - lo), 0.05, 0.95)
+        theta[key] = jnp.log(frac / (1 - frac))
     if fit_poisson:
         nu = jnp.asarray(material.poisson, dtype)
         theta["poisson"] = jnp.log(nu / (0.5 - nu))  # logit(2 nu)
@@ -528,7 +557,8 @@ def _boundary_probe(ev, theta, refs, fit_poisson, times):
     Boundaries: a modulus below 1e-4 of the instantaneous modulus `g_inf + sum g`;
     a relaxation time below 1e-2 of the first time step or above 1e2 of the span.
     Each is tried alone, and a dead arm (modulus ~ 0 or time out of range) also
-    revived whole (one evaluation each); the best is returned."""
+    revived whole; a parameter with bounds pressed against one is tried at the middle
+    of its range (one evaluation each); the best is returned."""
     value = float(ev.loss(theta)[0])
     material = _to_material(theta, refs, fit_poisson)
     free, theta = theta, {**refs.get("fixed", {}), **theta}  # trials on all, kept: free
@@ -562,6 +592,18 @@ def _boundary_probe(ev, theta, refs, fit_poisson, times):
                 trials.append({**theta, "g_inf": theta["g_inf"] + shrink,
                                "g": (theta["g"] + shrink).at[i].set(inside)})
     best, best_value = None, value * (1 - 1e-3)
+    # a bounded parameter cannot run away (and its coordinate is not a log): its
+    # trials go
+    bounded = set(refs.get("bounds", {}))
+    trials = [t for t in trials
+              if all(bool(jnp.array_equal(t[k], theta[k])) for k in bounded)]
+    # ... but one pressed against a bound (within 1 % of the range: the sigmoid is
+    # flat there, the same trap) is tried at the middle of its range
+    for key in bounded & set(free):
+        frac = np.asarray(jax.nn.sigmoid(theta[key]), float).reshape(-1)
+        for i in np.flatnonzero((frac < 0.01) | (frac > 0.99)):
+            moved = theta[key].reshape(-1).at[i].set(0.0).reshape(theta[key].shape)
+            trials.append({**theta, key: moved})
     trials = [{k: t[k] for k in free} for t in trials]
     trials = [t for t in trials if any(
         not bool(jnp.array_equal(t[k], free[k])) for k in free)]
@@ -633,6 +675,7 @@ def fit_prony(
     check_grid: bool = False,
     fixed: dict | None = None,
     weights=None,
+    bounds: dict | None = None,
     _model: Callable | None = None,
 ) -> PronyFit:
     """Fit a Prony series `G(t) = g_inf + sum_i g_i exp(-t / tau_i)` to indentation
@@ -679,6 +722,13 @@ def fit_prony(
       Their `std` is 0. (A modulus cannot be fixed at 0: the series is positive by
       construction; fit fewer arms instead.) Poisson's ratio is fixed unless
       `fit_poisson`.
+    - `bounds`: `{"g_inf" | "g" | "tau": (lo, hi)}`, `0 < lo < hi < inf` [Pa or s]:
+      the parameter (every arm for `g`, `tau`) is kept in `[lo, hi]` by the
+      parametrisation `log v = log lo + (log hi - log lo) sigmoid(theta)`. E.g.
+      `bounds={"tau": (dt, 10 * span)}` keeps relaxation times where the data can see
+      them (a time far beyond the data is degenerate with `g_inf`). A parameter at a
+      bound is a constrained minimum (`converged` can be `True` there); its `std` is
+      that of the linearised, unconstrained problem.
     - `weights`: `(nt,)` positive weights of the samples (e.g. `sqrt(count)` for bin
       means of `count` raw samples: the inverse of each sample's noise); normalised to
       a mean square of 1. Default: equal. The loss is then
@@ -755,6 +805,20 @@ def fit_prony(
             raise ValueError(f"fixed[{key!r}] must be {'a number' if not shape else f'{n} numbers'}"
                              f" > 0, got {value!r}")
         fixed_values[key] = arr
+    bound_values = {}
+    for key, value in dict(bounds or {}).items():
+        if key not in ("g_inf", "g", "tau"):
+            raise ValueError(f"bounds: unknown parameter {key!r} (g_inf, g, tau)")
+        if key in fixed_values:
+            raise ValueError(f"bounds[{key!r}]: the parameter is fixed")
+        try:
+            lo, hi = (float(v) for v in value)
+        except (TypeError, ValueError):
+            raise ValueError(f"bounds[{key!r}] must be a pair (lo, hi), got {value!r}")
+        if not (0 < lo < hi < math.inf):
+            raise ValueError(f"bounds[{key!r}] must satisfy 0 < lo < hi < inf, got "
+                             f"{value!r}")
+        bound_values[key] = (lo, hi)
     n_params = 1 + 2 * n + int(bool(fit_poisson)) - sum(
         int(np.size(v)) for v in fixed_values.values())
     if data.times.shape[0] <= n_params:
@@ -807,6 +871,11 @@ def fit_prony(
         scales = {"g_inf": refs["g_ref"], "g": refs["g_ref"], "tau": refs["t_ref"]}
         refs["fixed"] = {k: jnp.log(jnp.asarray(v, dtype) / scales[k])
                          for k, v in fixed_values.items()}
+    if bound_values:
+        scales = {"g_inf": refs["g_ref"], "g": refs["g_ref"], "tau": refs["t_ref"]}
+        refs["bounds"] = {k: (jnp.log(jnp.asarray(lo, dtype) / scales[k]),
+                              jnp.log(jnp.asarray(hi, dtype) / scales[k]))
+                          for k, (lo, hi) in bound_values.items()}
     ev = _Evaluator(ctx, refs, target, scale, model, bool(fit_poisson), dtype)
     if init is None:
         init = _initial_guess(ev, refs, fit_poisson, kind, data.times, target, n,
@@ -1016,8 +1085,13 @@ def fit_prony(
         sigma_rel = math.sqrt(float(np.sum(rel**2)) / (nt - n_params))
     else:
         sigma_rel = float(noise_std) / scale_f
-    if np.all(np.isfinite(rows)):
-        eigval, eigvec = np.linalg.eigh(rows.T @ rows)
+    # The Jacobian in the logs of the parameters (bounded ones are optimised in a
+    # logit coordinate): std and covariance are those of the log-parameters.
+    factor = np.asarray(ravel_pytree(_bound_factors(theta, refs))[0], float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rows_log = rows / factor[None, :]
+    if np.all(np.isfinite(rows_log)):
+        eigval, eigvec = np.linalg.eigh(rows_log.T @ rows_log)
         keep = eigval > 1e-14 * max(float(eigval.max()), 1e-300)
         inv = np.where(keep, 1 / np.where(keep, eigval, 1), 0.0)
         var = np.sum(eigvec**2 * inv[None, :], axis=1)
@@ -1104,7 +1178,7 @@ def fit_prony(
         std=sorted_split(std),
         covariance=cov[np.ix_(perm, perm)],
         parameter_names=names,
-        gradient=sorted_split(np.asarray(ravel_pytree(grad)[0])),
+        gradient=sorted_split(np.asarray(ravel_pytree(grad)[0]) / factor),
         noise=sigma_rel * scale_f,
         discretisation=discretisation,
     )

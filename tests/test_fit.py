@@ -621,3 +621,30 @@ def test_an_invalid_trial_material_stops_lm_without_raising(monkeypatch):
     assert not fit.converged
     assert "invalid material (relaxation times must be distinct)" in fit.message
     np.testing.assert_allclose(params(fit.material), params(start), rtol=1e-12)
+
+
+def test_bounds():
+    """`bounds=`: bounds that contain the optimum change nothing (1e-6); bounds that
+    exclude the true tau (0.5 s) hold the fit at the nearer bound (0.3 s), a
+    constrained minimum reported converged, and every fitted tau lies within the
+    bounds; bad bounds are refused."""
+    data, template, model = ramp_hold_unload_case()
+    free = jc.fit_prony(data, template, 1, _model=model)
+    wide = jc.fit_prony(data, template, 1, _model=model, bounds={"tau": (0.01, 10.0),
+                                                                  "g": (1e7, 1e11)})
+    assert wide.converged, wide.message
+    np.testing.assert_allclose(params(wide.material), params(free.material), rtol=1e-6)
+    np.testing.assert_allclose(wide.std["tau"], free.std["tau"], rtol=1e-3)
+    tight = jc.fit_prony(data, template, 1, _model=model, bounds={"tau": (0.1, 0.3)})
+    assert tight.converged, tight.message
+    assert 0.1 <= float(tight.material.tau[0]) <= 0.3 * (1 + 1e-12)  # exp(log 0.3)
+    assert float(tight.material.tau[0]) == pytest.approx(0.3, rel=1e-3)
+    assert tight.loss > free.loss
+    for bad, match in (({"tau": (0.3, 0.1)}, "0 < lo < hi"),
+                       ({"tau": 0.3}, "a pair"),
+                       ({"nu": (0, 1)}, "unknown parameter")):
+        with pytest.raises(ValueError, match=match):
+            jc.fit_prony(data, template, 1, _model=model, bounds=bad)
+    with pytest.raises(ValueError, match="is fixed"):
+        jc.fit_prony(data, template, 1, _model=model, bounds={"tau": (0.1, 1.0)},
+                     fixed={"tau": [0.5]})
