@@ -3,6 +3,7 @@
     jaxcontact fit FILE... --radius R [--arms N|auto] [--out DIR] [--n N]
                    [--poisson NU] [--baseline constant|linear] [--samples A,H,R]
                    [--segments approach,hold,retract] [--steps K]
+                   [--tau-range LO,HI] [--no-check-grid]
 
 Each file is read by `jc.read_afm` (afmformats: `pip install "jaxcontact[afm]"`), its
 segments binned (`--samples`: points in the approach, hold and retract after contact),
@@ -63,6 +64,9 @@ def add_parser(sub):
     p.add_argument("--check-grid", action=argparse.BooleanOptionalAction, default=True,
                    help="also solve the fitted model on a grid twice as fine and report "
                         "the difference (the model's discretisation error; default on)")
+    p.add_argument("--tau-range", default=None, metavar="LO,HI",
+                   help="bounds on the relaxation times [s] (default: none); e.g. the "
+                        "sampling step and the curve's duration")
     p.add_argument("--steps", type=int, default=200,
                    help="bound on the Levenberg-Marquardt steps (default 200)")
     p.add_argument("--samples", default="8,24,8", metavar="A,H,R",
@@ -82,6 +86,17 @@ def _check(args):
             raise _BadInput(f"--arms must be an integer or 'auto', got {args.arms!r}")
         if not 1 <= arms <= 8:
             raise _BadInput(f"--arms must be in 1..8, got {arms}")
+    if args.tau_range is not None:
+        try:
+            lo, hi = (float(v) for v in args.tau_range.split(","))
+        except ValueError:
+            lo = hi = float("nan")
+        if not (0 < lo < hi < math.inf):
+            raise _BadInput(f"--tau-range must be LO,HI with 0 < LO < HI [s], got "
+                            f"{args.tau_range!r}")
+        args.tau_bounds = (lo, hi)
+    else:
+        args.tau_bounds = None
     if args.steps < 1:
         raise _BadInput(f"--steps must be >= 1, got {args.steps}")
     if args.n < 4:
@@ -156,7 +171,8 @@ def _fit_one(path, args, samples, segments):
             break
         # bin means of `counts` raw samples: weights sqrt(counts) (inverse noise)
         fit = jc.fit_prony(data, template, k, lm_steps=args.steps,
-                           weights=np.sqrt(counts))
+                           weights=np.sqrt(counts),
+                           bounds={"tau": args.tau_bounds} if args.tau_bounds else None)
         aic, bic = _information(fit, 1 + 2 * k)
         fits[k] = (fit, aic, bic)
     if not fits:
@@ -191,6 +207,7 @@ def _fit_one(path, args, samples, segments):
         "radius_m": args.radius,
         "radius_note": RADIUS_NOTE,
         "poisson": args.poisson,
+        "tau_bounds_s": list(args.tau_bounds) if args.tau_bounds else None,
         "grid": [args.n, args.n],
         "arms": best,
         "parameters": {

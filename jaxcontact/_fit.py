@@ -570,35 +570,48 @@ def _boundary_probe(ev, theta, refs, fit_poisson, times):
     trials = []
     mid = math.log(math.sqrt(first * span) / t_ref)
     for i in range(g.shape[0]):
-        if tau[i] < 1e-2 * first or tau[i] > 1e2 * span:
+        if (tau[i] < 1e-2 * first or tau[i] > 1e2 * span) and "tau" not in refs.get(
+                "bounds", {}):
             trials.append({**theta, "tau": theta["tau"].at[i].set(mid)})
+    bounded = set(refs.get("bounds", {}))
+
+    def from_x(key, x):  # a scaled log -> the optimiser's coordinate of `key`
+        if key in bounded:  # logit, kept 5 % inside the bounds
+            lo, hi = refs["bounds"][key]
+            f = jnp.clip((x - lo) / (hi - lo), 0.05, 0.95)
+            return jnp.log(f / (1 - f))
+        return x
+
+    def shifted(key, delta):
+        return from_x(key, _log_scaled(theta, refs, key) + delta)
+
+    def set_at(key, i, x):
+        return from_x(key, _log_scaled(theta, refs, key).at[i].set(x))
+
     for frac in (1e-2, 1e-1):
         # the modulus to `frac` of g0, the others scaled to keep g0 (the instantaneous
         # modulus, which the data fix best: the trap sits in a valley along it)
         inside = math.log(frac * g0 / g_ref)
         shrink = math.log(1 - frac)
         if g_inf < 1e-4 * g0:
-            trials.append({**theta, "g_inf": jnp.full_like(theta["g_inf"], inside),
-                           "g": theta["g"] + shrink})
+            trials.append({**theta, "g_inf": from_x("g_inf", jnp.full_like(
+                theta["g_inf"], inside)), "g": shifted("g", shrink)})
         for i in range(g.shape[0]):
             tau_out = tau[i] < 1e-2 * first or tau[i] > 1e2 * span
             if g[i] < 1e-4 * g0 or tau_out:
                 # a dead arm (no modulus, or a time the data cannot see): revived
                 # whole, its time at the middle of the data's time scales
-                trials.append({**theta, "g_inf": theta["g_inf"] + shrink,
-                               "g": (theta["g"] + shrink).at[i].set(inside),
-                               "tau": theta["tau"].at[i].set(mid)})
+                g_new = from_x("g", (_log_scaled(theta, refs, "g") + shrink).at[i].set(
+                    inside))
+                trials.append({**theta, "g_inf": shifted("g_inf", shrink), "g": g_new,
+                               "tau": set_at("tau", i, mid)})
             if g[i] < 1e-4 * g0 and not tau_out:
-                trials.append({**theta, "g_inf": theta["g_inf"] + shrink,
-                               "g": (theta["g"] + shrink).at[i].set(inside)})
+                g_new = from_x("g", (_log_scaled(theta, refs, "g") + shrink).at[i].set(
+                    inside))
+                trials.append({**theta, "g_inf": shifted("g_inf", shrink), "g": g_new})
     best, best_value = None, value * (1 - 1e-3)
-    # a bounded parameter cannot run away (and its coordinate is not a log): its
-    # trials go
-    bounded = set(refs.get("bounds", {}))
-    trials = [t for t in trials
-              if all(bool(jnp.array_equal(t[k], theta[k])) for k in bounded)]
-    # ... but one pressed against a bound (within 1 % of the range: the sigmoid is
-    # flat there, the same trap) is tried at the middle of its range
+    # a bounded parameter pressed against a bound (within 1 % of the range: the
+    # sigmoid is flat there, the same trap) is tried at the middle of its range
     for key in bounded & set(free):
         frac = np.asarray(jax.nn.sigmoid(theta[key]), float).reshape(-1)
         for i in np.flatnonzero((frac < 0.01) | (frac > 0.99)):
@@ -1088,8 +1101,9 @@ def fit_prony(
     # The Jacobian in the logs of the parameters (bounded ones are optimised in a
     # logit coordinate): std and covariance are those of the log-parameters.
     factor = np.asarray(ravel_pytree(_bound_factors(theta, refs))[0], float)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        rows_log = rows / factor[None, :]
+    # a bounded parameter with its sigmoid saturated (factor 0) is undetermined
+    factor = np.where(factor > 0, factor, np.inf)
+    rows_log = rows / factor[None, :]
     if np.all(np.isfinite(rows_log)):
         eigval, eigvec = np.linalg.eigh(rows_log.T @ rows_log)
         keep = eigval > 1e-14 * max(float(eigval.max()), 1e-300)

@@ -256,6 +256,8 @@ def test_relaxation_file():
     (["--radius", "5e-6", "--segments", "hold"], "--segments must list approach"),
     (["--radius", "5e-6", "--poisson", "0.7"], "--poisson must be in"),
     (["--radius", "5e-6", "--steps", "0"], "--steps must be >= 1"),
+    (["--radius", "5e-6", "--tau-range", "3,1"], "--tau-range must be LO,HI"),
+    (["--radius", "5e-6", "--tau-range", "x"], "--tau-range must be LO,HI"),
 ])
 def test_fit_command_bad_input(argv, match, tmp_path, capsys):
     from jaxcontact._cli import main
