@@ -564,8 +564,12 @@ def _boundary_probe(ev, theta, refs, fit_poisson, times):
     free, theta = theta, {**refs.get("fixed", {}), **theta}  # trials on all, kept: free
     g_inf, g, tau = (np.asarray(x, float) for x in (material.g_inf, material.g,
                                                     material.tau))
-    g0 = float(g_inf + g.sum())
     span, first = float(times[-1] - times[0]), float(np.min(np.diff(times)))
+    # g0 of the arms the data can see: a dead arm (tau far outside the data's times)
+    # may carry any modulus (2.8e18 Pa at tau = 3e-18 s on the creep file, 1 arm)
+    live = (tau >= 1e-2 * first) & (tau <= 1e2 * span)
+    g0 = float(g_inf + g[live].sum()) if float(g_inf + g[live].sum()) > 0 else float(
+        g_inf + g.sum())
     g_ref, t_ref = float(refs["g_ref"]), float(refs["t_ref"])
     trials = []
     mid = math.log(math.sqrt(first * span) / t_ref)
@@ -588,9 +592,11 @@ def _boundary_probe(ev, theta, refs, fit_poisson, times):
     def set_at(key, i, x):
         return from_x(key, _log_scaled(theta, refs, key).at[i].set(x))
 
-    for frac in (1e-2, 1e-1):
+    for frac in (1e-2, 1e-1, 0.5):
         # the modulus to `frac` of g0, the others scaled to keep g0 (the instantaneous
-        # modulus, which the data fix best: the trap sits in a valley along it)
+        # modulus, which the data fix best: the trap sits in a valley along it); 0.5
+        # for a dead arm that must carry a real share to beat what it mimics (a dead
+        # arm with a huge modulus makes J(0) ~ 0: a one-step lag)
         inside = math.log(frac * g0 / g_ref)
         shrink = math.log(1 - frac)
         if g_inf < 1e-4 * g0:
@@ -625,6 +631,24 @@ def _boundary_probe(ev, theta, refs, fit_poisson, times):
         if np.isfinite(v) and v < best_value:
             best, best_value = trial, v
     return best
+
+
+def _at_boundary(material, times, refs):
+    """Names of the parameters at a boundary of the log-parametrisation (see
+    `_boundary_probe`): a modulus below 1e-4 of the live arms' g0, an (unbounded)
+    relaxation time below 1e-2 of the first step or above 1e2 of the span."""
+    g_inf, g, tau = (np.asarray(x, float) for x in (material.g_inf, material.g,
+                                                    material.tau))
+    span, first = float(times[-1] - times[0]), float(np.min(np.diff(times)))
+    live = (tau >= 1e-2 * first) & (tau <= 1e2 * span)
+    g0 = float(g_inf + g[live].sum()) or float(g_inf + g.sum())
+    out = ["g_inf"] if g_inf < 1e-4 * g0 else []
+    for i in range(g.shape[0]):
+        if g[i] < 1e-4 * g0:
+            out.append(f"g_{i + 1} (tau {tau[i]:.3g})")
+        if not live[i] and "tau" not in refs.get("bounds", {}):
+            out.append(f"tau_{i + 1} = {tau[i]:.3g}")
+    return out
 
 
 def _discretisation(scene, material, model, curve):
@@ -1128,7 +1152,17 @@ def fit_prony(
     predicted = _predicted_decrease(rows, rel)
     floor = 1e-18 if jnp.finfo(dtype).bits >= 64 else 1e-10
     small = predicted < _GN_TOL or predicted * float(value) < floor
-    converged = bool(small) and bool(np.all(np.asarray(ok))) and probe is None
+    # A parameter left at a boundary is not an interior minimum the certificate can
+    # see (its log's column is ~0): NOT converged, and said why.
+    stuck = [x for x in _at_boundary(_to_material(theta, refs, fit_poisson), data.times,
+                                     refs)
+             if x.split("_")[0] + ("_inf" if x.startswith("g_inf") else "")
+             not in fixed_values]
+    if stuck:
+        message += (f"; at a boundary of the parametrisation: {', '.join(stuck)} (the "
+                    "data do not determine it: fewer arms, fixed= or bounds=)")
+    converged = (bool(small) and bool(np.all(np.asarray(ok))) and probe is None
+                 and not stuck)
     verdict = "converged" if converged else "NOT converged"
     message += (f"; Gauss-Newton predicts a further {predicted:.2g} relative decrease "
                 f"of the loss {float(value):.3g} ({verdict}: the bound is {_GN_TOL:g}, "
