@@ -920,6 +920,7 @@ def fit_prony(
                               data.depth if kind == "force" else data.force)
     theta = _to_theta(init, refs, fit_poisson, dtype)
     theta = {k: v for k, v in theta.items() if k not in fixed_values}
+    theta_start = theta
 
     fd_step = 1e-3 if jnp.finfo(dtype).bits >= 64 else 3e-2
     history = []
@@ -1105,10 +1106,22 @@ def fit_prony(
             pred = _predicted_decrease(ev.jacobian(theta, fd_step), r_auto)
             value_auto = float(np.mean(r_auto**2))
             floor = 1e-18 if jnp.finfo(dtype).bits >= 64 else 1e-10
-            if probe is not None or not (pred < _GN_TOL or pred * value_auto < floor):
-                theta, message_lm, probe, _, _ = with_probes(run_lm, theta, 0)
-                message = (f"L-BFGS: {message}; not certified (Gauss-Newton predicts "
-                           f"{pred:.2g}), then {message_lm}")
+            stuck_auto = _at_boundary(_to_material(theta, refs, fit_poisson),
+                                      data.times, refs)
+            if (probe is not None or stuck_auto
+                    or not (pred < _GN_TOL or pred * value_auto < floor)):
+                # LM from L-BFGS' end AND from the start (L-BFGS may have walked into a
+                # dead arm, where no gradient leads out: the creep file at 16^2, 1 arm:
+                # tau_1 -> 3e-18 s, while LM from the start converges); the lower loss
+                start_lm = with_probes(run_lm, theta_start, 0)
+                end_lm = with_probes(run_lm, theta, 0)
+                best_lm = min((start_lm, end_lm), key=lambda r: float(ev.loss(r[0])[0]))
+                theta, message_lm, probe, _, _ = best_lm
+                why = (f"at a boundary ({', '.join(stuck_auto)})" if stuck_auto else
+                       f"Gauss-Newton predicts {pred:.2g}")
+                message = (f"L-BFGS: {message}; not certified ({why}), then, from "
+                           f"{'the start' if best_lm is start_lm else 'its end'}, "
+                           f"{message_lm}")
                 used = "lbfgs+lm"
 
     # -- Finish up: curve, sensitivities -------------------------------------------------
