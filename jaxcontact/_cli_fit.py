@@ -3,14 +3,15 @@
     jaxcontact fit FILE... --radius R [--arms N|auto] [--out DIR] [--n N]
                    [--poisson NU] [--baseline constant|linear] [--samples A,H,R]
                    [--segments approach,hold,retract] [--steps K]
+                   [--tau-range LO,HI] [--no-check-grid]
 
 Each file is read by `jc.read_afm` (afmformats: `pip install "jaxcontact[afm]"`), its
 segments binned (`--samples`: points in the approach, hold and retract after contact),
 and `jc.fit_prony` fits the series through the full contact model (a sphere of radius
 `R` [m] on an `N x N` grid). Creep files (force clamp) fit the depth under the measured
 force; relaxation files (height clamp) the force under the measured depth. `--arms auto`
-fits 1 to 4 arms and keeps the one with the smallest BIC (AIC and BIC of every count
-are reported).
+fits 1 to 4 arms and keeps the converged one with the smallest BIC (AIC and BIC of
+every count are reported).
 
 Writes `DIR/STEM_fit.json` (parameters with Gauss-Newton standard deviations, the
 residual RMS and noise estimate, convergence, contact point, units) and
@@ -63,6 +64,9 @@ def add_parser(sub):
     p.add_argument("--check-grid", action=argparse.BooleanOptionalAction, default=True,
                    help="also solve the fitted model on a grid twice as fine and report "
                         "the difference (the model's discretisation error; default on)")
+    p.add_argument("--tau-range", default=None, metavar="LO,HI",
+                   help="bounds on the relaxation times [s] (default: none); e.g. the "
+                        "sampling step and the curve's duration")
     p.add_argument("--steps", type=int, default=200,
                    help="bound on the Levenberg-Marquardt steps (default 200)")
     p.add_argument("--samples", default="8,24,8", metavar="A,H,R",
@@ -82,6 +86,17 @@ def _check(args):
             raise _BadInput(f"--arms must be an integer or 'auto', got {args.arms!r}")
         if not 1 <= arms <= 8:
             raise _BadInput(f"--arms must be in 1..8, got {arms}")
+    if args.tau_range is not None:
+        try:
+            lo, hi = (float(v) for v in args.tau_range.split(","))
+        except ValueError:
+            lo = hi = float("nan")
+        if not (0 < lo < hi < math.inf):
+            raise _BadInput(f"--tau-range must be LO,HI with 0 < LO < HI [s], got "
+                            f"{args.tau_range!r}")
+        args.tau_bounds = (lo, hi)
+    else:
+        args.tau_bounds = None
     if args.steps < 1:
         raise _BadInput(f"--steps must be >= 1, got {args.steps}")
     if args.n < 4:
@@ -126,6 +141,15 @@ def _correlation(cov):
     return [[float(v) if np.isfinite(v) else None for v in row] for row in c]
 
 
+def _choose(fits):
+    """The arm count with the smallest BIC among the converged fits (an unconverged
+    fit's BIC is not its model's: e.g. a second arm far slower than the hold,
+    degenerate with g_inf), among all when none converged. `fits`: {arms: (fit, aic,
+    bic)}."""
+    converged = [k for k in fits if fits[k][0].converged] or list(fits)
+    return min(converged, key=lambda k: fits[k][2])
+
+
 def _fit_one(path, args, samples, segments):
     import numpy as np
 
@@ -145,12 +169,15 @@ def _fit_one(path, args, samples, segments):
     for k in arm_counts:
         if t.size <= 2 * k + 2:
             break
-        fit = jc.fit_prony(data, template, k, lm_steps=args.steps)
+        # bin means of `counts` raw samples: weights sqrt(counts) (inverse noise)
+        fit = jc.fit_prony(data, template, k, lm_steps=args.steps,
+                           weights=np.sqrt(counts),
+                           bounds={"tau": args.tau_bounds} if args.tau_bounds else None)
         aic, bic = _information(fit, 1 + 2 * k)
         fits[k] = (fit, aic, bic)
     if not fits:
         raise _BadInput(f"{path}: {t.size} samples are too few to fit")
-    best = min(fits, key=lambda k: fits[k][2])
+    best = _choose(fits)
     fit = fits[best][0]
     disc = None
     if args.check_grid:
@@ -180,6 +207,7 @@ def _fit_one(path, args, samples, segments):
         "radius_m": args.radius,
         "radius_note": RADIUS_NOTE,
         "poisson": args.poisson,
+        "tau_bounds_s": list(args.tau_bounds) if args.tau_bounds else None,
         "grid": [args.n, args.n],
         "arms": best,
         "parameters": {
@@ -203,7 +231,8 @@ def _fit_one(path, args, samples, segments):
         "residual_over_noise_hold": chi_hold,
         "converged": bool(fit.converged),
         "message": fit.message,
-        "information_criteria": {str(k): {"aic": v[1], "bic": v[2], "loss": v[0].loss}
+        "information_criteria": {str(k): {"aic": v[1], "bic": v[2], "loss": v[0].loss,
+                                          "converged": bool(v[0].converged)}
                                  for k, v in fits.items()},
         "contact_time_s": curve.contact_time,
         "spring_constant_N_per_m": curve.spring_constant,
@@ -312,6 +341,7 @@ def _print(r, json_path):
               f"({r['discretisation_rms'] / r['residual_rms']:.2f} x the residual)")
     if len(r["information_criteria"]) > 1:
         for k, v in r["information_criteria"].items():
-            print(f"  {k} arm(s): AIC {v['aic']:.1f}  BIC {v['bic']:.1f}")
+            print(f"  {k} arm(s): AIC {v['aic']:.1f}  BIC {v['bic']:.1f}"
+                  + ("" if v["converged"] else "  (not converged)"))
     print(f"  note: {RADIUS_NOTE}")
     print(f"  -> {json_path}" + (f", {r['plot']}" if r["plot"] else ""))

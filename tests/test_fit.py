@@ -119,7 +119,6 @@ def test_fit_recovers_pmma_on_the_closed_form_model(kind):
     err = np.abs(params(fit.material) / params(pmma()) - 1)
     assert np.all(err < 1e-6), err
     assert fit.loss < 1e-18
-    assert fit.optimiser == "lm" and fit.lm_steps > 0  # the default (optimistix)
     assert fit.loss_history[0] >= fit.loss_history[-1] == fit.loss
     # The start (apparent moduli + a cheap Prony fit to them) is already close: for a
     # held step on this model the apparent modulus is G(t) (1/J(t)) itself.
@@ -202,17 +201,20 @@ def test_a_fit_stuck_at_a_boundary_restarts_or_says_it_has_not_converged(monkeyp
 
 
 @pytest.mark.parametrize("limits", [dict(optimiser="lm", lm_steps=1),
+                                    dict(optimiser="auto", adam_steps=0, lbfgs_steps=1,
+                                         lm_steps=1),
                                     dict(optimiser="lbfgs", adam_steps=0, lbfgs_steps=1)])
 def test_a_fit_stopped_early_is_not_converged(limits):
     data, template, model = ramp_hold_unload_case()
     start = jc.Prony(3e9, jnp.array([0.7e9]), jnp.array([1.5]), NU)
     fit = jc.fit_prony(data, template, 1, _model=model, init=start, **limits)
     assert not fit.converged, fit.message
-    assert fit.optimiser == limits["optimiser"]
+    assert fit.optimiser == {"auto": "lbfgs+lm"}.get(limits["optimiser"],
+                                                     limits["optimiser"])
 
 
 @pytest.mark.parametrize("optimiser, kind", [
-    ("lm", "force"), ("lm", "depth"), ("lbfgs", "force"),
+    ("lm", "force"), ("lm", "depth"), ("lbfgs", "force"), ("auto", "depth"),
     pytest.param("lbfgs", "depth", marks=pytest.mark.xfail(strict=True, reason=(
         "preconditioned L-BFGS from (0.2, 0.2, 5) x the truth stops at its iteration "
         "bound (and says NOT converged): why LM is the default")))])
@@ -228,15 +230,19 @@ def test_far_starts_reach_the_minimum(kind, optimiser):
     else:
         data, template, model = ramp_hold_creep_case()
     truth = np.array(ONE_ARM)
+    used = set()
     for f in ([5, 0.2, 0.2], [0.2, 0.2, 5], [0.2, 5, 0.5], [5, 5, 2]):
         start = jc.Prony(truth[0] * f[0], jnp.array([truth[1] * f[1]]),
                          jnp.array([truth[2] * f[2]]), NU)
         fit = jc.fit_prony(data, template, 1, _model=model, init=start,
                            optimiser=optimiser)
         assert fit.converged, (f, fit.message)
+        used.add(fit.optimiser)
         std = np.concatenate([[fit.std["g_inf"]], fit.std["g"], fit.std["tau"]])
         z = np.log(params(fit.material) / truth) / std
         assert np.all(np.abs(z) < 3), (f, params(fit.material), std)
+    if optimiser == "auto":  # L-BFGS alone where it is certified, LM where not
+        assert used == {"lbfgs", "lbfgs+lm"}, used
 
 
 def ramp_hold_creep_case(noise=0.01, seed=0):
@@ -597,3 +603,75 @@ def test_weights():
         z(unweighted), z(weighted))
     with pytest.raises(ValueError, match="weights must be"):
         jc.fit_prony(bad, template, 1, _model=model, weights=-w)
+
+
+def test_an_invalid_trial_material_stops_lm_without_raising(monkeypatch):
+    """Inside the compiled LM solve a trial step can make an invalid material (e.g.
+    two equal relaxation times: the constructor's runtime check fires and raises out
+    of the whole solve). The fit then keeps its start and says so, NOT converged."""
+    import equinox as eqx
+
+    def fails(*args, **kwargs):
+        raise eqx.EquinoxRuntimeError("relaxation times must be distinct")
+
+    monkeypatch.setattr(_fit, "_lm_solve", fails)
+    data, template, model = ramp_hold_unload_case()
+    start = jc.Prony(3e9, jnp.array([0.7e9]), jnp.array([1.5]), NU)
+    fit = jc.fit_prony(data, template, 1, _model=model, init=start, optimiser="lm")
+    assert not fit.converged
+    assert "invalid material (relaxation times must be distinct)" in fit.message
+    np.testing.assert_allclose(params(fit.material), params(start), rtol=1e-12)
+
+
+def test_bounds():
+    """`bounds=`: bounds that contain the optimum change nothing (1e-6); bounds that
+    exclude the true tau (0.5 s) hold the fit at the nearer bound (0.3 s), a
+    constrained minimum reported converged, and every fitted tau lies within the
+    bounds; bad bounds are refused."""
+    data, template, model = ramp_hold_unload_case()
+    free = jc.fit_prony(data, template, 1, _model=model)
+    wide = jc.fit_prony(data, template, 1, _model=model, bounds={"tau": (0.01, 10.0),
+                                                                  "g": (1e7, 1e11)})
+    assert wide.converged, wide.message
+    np.testing.assert_allclose(params(wide.material), params(free.material), rtol=1e-6)
+    np.testing.assert_allclose(wide.std["tau"], free.std["tau"], rtol=1e-3)
+    tight = jc.fit_prony(data, template, 1, _model=model, bounds={"tau": (0.1, 0.3)})
+    assert tight.converged, tight.message
+    assert 0.1 <= float(tight.material.tau[0]) <= 0.3 * (1 + 1e-12)  # exp(log 0.3)
+    assert float(tight.material.tau[0]) == pytest.approx(0.3, rel=1e-3)
+    assert tight.loss > free.loss
+    for bad, match in (({"tau": (0.3, 0.1)}, "0 < lo < hi"),
+                       ({"tau": 0.3}, "a pair"),
+                       ({"nu": (0, 1)}, "unknown parameter")):
+        with pytest.raises(ValueError, match=match):
+            jc.fit_prony(data, template, 1, _model=model, bounds=bad)
+    with pytest.raises(ValueError, match="is fixed"):
+        jc.fit_prony(data, template, 1, _model=model, bounds={"tau": (0.1, 1.0)},
+                     fixed={"tau": [0.5]})
+
+
+def test_a_dead_arm_is_reported():
+    """A start with a dead arm (tau = 3e-18 s, g = 3e18 Pa: what the 1-arm fit of the
+    creep file reached, reported converged=True before). Today the probes do not
+    revive it here (a dead arm with a huge modulus makes J(0) ~ 0, a one-step lag that
+    fits better than any revived arm they try), so the fit must say NOT converged and
+    name the boundary; a converged fit would have to be the truth (3 std)."""
+    data, template, model = ramp_hold_creep_case()
+    start = jc.Prony(1e9, jnp.array([3e18]), jnp.array([3e-18]), NU)
+    fit = jc.fit_prony(data, template, 1, _model=model, init=start)
+    if fit.converged:
+        std = np.concatenate([[fit.std["g_inf"]], fit.std["g"], fit.std["tau"]])
+        assert np.all(np.abs(np.log(params(fit.material) / np.array(ONE_ARM)))
+                      < 3 * std)
+    else:
+        assert "at a boundary of the parametrisation: tau_1" in fit.message
+
+
+def test_a_dead_arm_left_in_place_is_not_converged(monkeypatch):
+    monkeypatch.setattr(_fit, "_MAX_RESTARTS", 0)
+    monkeypatch.setattr(_fit, "_boundary_probe", lambda *a, **k: None)
+    data, template, model = ramp_hold_creep_case()
+    start = jc.Prony(1e9, jnp.array([3e18]), jnp.array([3e-18]), NU)
+    fit = jc.fit_prony(data, template, 1, _model=model, init=start)
+    assert not fit.converged
+    assert "at a boundary of the parametrisation" in fit.message, fit.message

@@ -26,8 +26,15 @@ def _is_slow(path: Path) -> bool:
     return first == "# slow" or first.startswith("# slow ")
 
 
+# paper_reproduction runs in tests/test_paper_claims.py, which also checks its figures
+# and asserts its verdicts: one CI-size run (~7 min on a shared 2-core CPU) is enough.
+RUN_ELSEWHERE = {"paper_reproduction"}
+
+
 def _params():
     for path in NOTEBOOKS:
+        if path.stem in RUN_ELSEWHERE:
+            continue
         marks = [pytest.mark.slow] if _is_slow(path) else []
         yield pytest.param(path, marks=marks, id=path.stem)
 
