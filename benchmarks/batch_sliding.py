@@ -3,14 +3,14 @@ Python loop over the same scenes (issue 31, item 3).
 
 Scene: elastic sphere (R = 10 mm, G = 1.93 MPa, nu = 0.3) on a 32^2 grid of 2.4 mm,
 W = 0.15 N, F_x = 0.02 N in one step, no coupling (the rounds' tangential CG), with
-friction coefficients such that `--sliding` of the `--batch` members slide
+friction coefficients such that SLIDING of the BATCH members slide
 (mu W < F_x). Under `vmap` the rounds' `cond(gross_sliding, slide, cg)` becomes a
 `select` that runs both branches for every member: before the fix the CG of a
 sliding member (no static solution) ran to `max_steps`. Reported: the loop's and the
 batch's time after compilation (best of `--repeats`), their ratio, and the largest
 difference between the two answers.
 
-    python benchmarks/batch_sliding.py [--batch 8] [--sliding 3] [--max-steps 2000]
+    python benchmarks/batch_sliding.py [--configs 8:0 8:3 8:8 64:20] [--max-steps 2000]
 
 Results: `benchmarks/results/batch_sliding.json`.
 """
@@ -39,17 +39,24 @@ import jaxcontact as jc  # noqa: E402
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--batch", type=int, default=8)
-    parser.add_argument("--sliding", type=int, default=3)
+    parser.add_argument("--configs", nargs="+", default=["8:0", "8:3", "8:8", "64:20"],
+                        help="BATCH:SLIDING pairs")
     parser.add_argument("--max-steps", type=int, default=2000)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--out", default=str(ROOT / "benchmarks/results/batch_sliding.json"))
     args = parser.parse_args()
+    rows = [run(args, *map(int, c.split(":"))) for c in args.configs]
+    Path(args.out).write_text(json.dumps(dict(
+        machine=dict(platform=platform.platform(), processor=platform.processor(),
+                     load_average=os.getloadavg(), jax=jax.__version__),
+        rows=rows), indent=1))
+
+
+def run(args, batch_size, n_sliding):
     grid = jc.Grid((32, 32), 2.4e-3)
     w, fx = 0.15, 0.02
-    n_stick = args.batch - args.sliding
-    mus = np.concatenate([np.linspace(0.3, 0.5, n_stick),
-                          np.linspace(0.05, 0.12, args.sliding)])
+    mus = np.concatenate([np.linspace(0.3, 0.5, batch_size - n_sliding),
+                          np.linspace(0.05, 0.12, n_sliding)])
 
     def solve(mu):
         scene = jc.Scene(grid, jc.Sphere(10e-3), jc.Elastic(1.93e6, 0.3), jnp.zeros(1),
@@ -78,15 +85,12 @@ def main():
     t_loop, looped = best(loop)
     t_batch, (force, sliding, its) = best(batched)
     diff = max(abs(float(a[0]) - float(b)) for a, b in zip(looped, force))
-    row = dict(batch=args.batch, sliding_members=int(np.sum(np.asarray(sliding))),
+    row = dict(batch=batch_size, sliding_members=int(np.sum(np.asarray(sliding))),
                max_steps=args.max_steps, loop_s=t_loop, vmap_s=t_batch,
                vmap_over_loop=t_batch / t_loop, force_difference_N=diff,
                iterations=np.asarray(its).tolist(), mu=mus.tolist())
-    print(json.dumps(row))
-    Path(args.out).write_text(json.dumps(dict(
-        machine=dict(platform=platform.platform(), processor=platform.processor(),
-                     load_average=os.getloadavg(), jax=jax.__version__),
-        rows=[row]), indent=1))
+    print(json.dumps(row), flush=True)
+    return row
 
 
 if __name__ == "__main__":
