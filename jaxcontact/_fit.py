@@ -1100,8 +1100,8 @@ def fit_prony(
             if (probe is not None or stuck_auto
                     or not (pred < _GN_TOL or pred * value_auto < floor)):
                 # LM from L-BFGS' end AND from the start (L-BFGS may have walked into a
-                # dead arm, where no gradient leads out: the creep file at 16^2, 1 arm:
-                # tau_1 -> 3e-18 s, while LM from the start converges); the lower loss
+                # dead arm, where no gradient leads out: the creep file at 16^2, 1 arm,
+                # sent tau_1 to 3e-18 s, while LM from the start converges); the lower loss
                 start_lm = with_probes(run_lm, theta_start, 0)
                 end_lm = with_probes(run_lm, theta, 0)
                 best_lm = min((start_lm, end_lm), key=lambda r: float(ev.loss(r[0])[0]))
