@@ -167,6 +167,19 @@ class AbstractStepSolver(eqx.Module):
     `iterate` (see the module docs). Subclasses are final `eqx.Module`s whose fields
     are their options (tolerance, bounds, tuned constants with their defaults)."""
 
+    def __check_init__(self):
+        # The options common to the solvers, checked once here for every one of them.
+        rtol = getattr(self, "rtol", None)
+        if rtol is not None and not (0 < rtol < 1):
+            raise ValueError(f"rtol must be in (0, 1), got {rtol!r}")
+        for name in ("max_steps", "max_rounds", "resync_every", "evaluations"):
+            value = getattr(self, name, 1)
+            if isinstance(value, bool) or not (isinstance(value, int) and value >= 1):
+                raise ValueError(f"{name} must be a positive integer, got {value!r}")
+        precondition = getattr(self, "precondition", True)
+        if not isinstance(precondition, bool):
+            raise TypeError(f"precondition must be a bool, got {precondition!r}")
+
     @abc.abstractmethod
     def setup(self, problem: StepProblem) -> Any:
         """Loop invariants of the iteration (any Python object; closed over)."""

@@ -217,18 +217,6 @@ class PolonskyKeer(AbstractStepSolver):
     resync_every: int = eqx.field(static=True, default=25)
     precondition: bool = eqx.field(static=True, default=True)
 
-    def __check_init__(self):
-        if self.rtol is not None and not (0 < self.rtol < 1):
-            raise ValueError(f"rtol must be in (0, 1), got {self.rtol!r}")
-        if not (isinstance(self.max_steps, int) and self.max_steps >= 1):
-            raise ValueError(f"max_steps must be a positive integer, got {self.max_steps!r}")
-        if not (isinstance(self.resync_every, int) and self.resync_every >= 1):
-            raise ValueError(
-                f"resync_every must be a positive integer, got {self.resync_every!r}"
-            )
-        if not isinstance(self.precondition, bool):
-            raise TypeError(f"precondition must be a bool, got {self.precondition!r}")
-
     def supports(self, problem):
         if problem.nd != 0:
             return ("it solves frictionless (normal) steps only; use jc.Rounds() or "
