@@ -199,24 +199,19 @@ def _solve(scene: Scene, operator: HalfSpace, controls: _Controls,
     return sol
 
 
-def _first_failure(sol: Solution):
-    """`(any step failed, the RESULTS item of the first that did)`."""
-    failed = ~sol.converged
-    first = jnp.argmax(failed)
-    return jnp.any(failed), jax.tree.map(lambda v: v[first], sol.result)
-
-
 def _raise_on_failure(sol: Solution) -> Solution:
     """`sol`, raising the message of the first step's failure (`RESULTS`) if any step
     did not converge: at once for a concrete solution (no host callback in the
     compiled program), at run time (`eqx.error_if`) under `jit`, `vmap` or `grad`."""
-    any_failed, item = _first_failure(sol)
+    failed = ~sol.converged
+    first = jnp.argmax(failed)
+    item = jax.tree.map(lambda v: v[first], sol.result)
     if _validate.is_traced(sol):
-        return item.error_if(sol, any_failed)
-    if bool(any_failed):
-        step = int(jnp.argmax(~sol.converged))
-        raise ValueError(f"{RESULTS[item]}\n(time step {step} of {sol.times.shape[0]}; "
-                         "jc.solve(..., throw=False) returns the flags instead)")
+        return item.error_if(sol, jnp.any(failed))
+    if bool(jnp.any(failed)):
+        raise ValueError(f"{RESULTS[item]}\n(time step {int(first)} of "
+                         f"{sol.times.shape[0]}; jc.solve(..., throw=False) returns the "
+                         "flags instead)")
     return sol
 
 
