@@ -67,13 +67,17 @@ def main():
     parser.add_argument("--n", type=int, default=64)
     parser.add_argument("--steps", type=int, default=21)
     parser.add_argument("--out", default=str(ROOT / "benchmarks/results/compile_time.json"))
+    parser.add_argument("--root", default=str(ROOT),
+                        help="the checkout whose jaxcontact is measured (e.g. an older "
+                             "commit's `git archive`, for a before/after table)")
+    parser.add_argument("--label", default=None, help="a name for this tree in the JSON")
     args = parser.parse_args()
     names = args.presets or list(jc.presets.available())
     rows = []
     load_before = os.getloadavg()
     for name in names:
         for solver in args.solvers:
-            code = _CHILD.format(root=str(ROOT), name=name, solver=solver, n=args.n,
+            code = _CHILD.format(root=args.root, name=name, solver=solver, n=args.n,
                                  steps=args.steps)
             out = subprocess.run([sys.executable, "-c", code], capture_output=True,
                                  text=True, cwd=ROOT)
@@ -84,7 +88,8 @@ def main():
                 rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
             print(json.dumps(rows[-1]), flush=True)
     result = dict(
-        benchmark="compile_time", n=args.n, steps=args.steps,
+        benchmark="compile_time", n=args.n, steps=args.steps, label=args.label,
+        root=args.root,
         machine=dict(platform=platform.platform(), processor=platform.processor(),
                      cpu_count=os.cpu_count(), python=platform.python_version(),
                      load_average_before=load_before,

@@ -92,11 +92,15 @@ def _parse_param(text: str):
     return key, value
 
 
-def _setup_jax(float32: bool):
+def _setup_jax(float32: bool, cache: bool = True):
     import jax
+
+    from ._cache import cache_disabled_by_environment, enable_compilation_cache
 
     if not float32:
         jax.config.update("jax_enable_x64", True)
+    if cache and not cache_disabled_by_environment():
+        enable_compilation_cache()
     import jax.numpy as jnp
 
     return jnp.float32 if float32 else jnp.float64
@@ -429,7 +433,8 @@ def _run_scene(args, dtype) -> int:
 
     try:
         with clear_runtime_errors():  # a failed run-time check: exit 2, message first
-            sol = jc.solve(scene, progress=nt > 1, throw=False, **options)
+            sol = jc.solve(scene, progress=args.progress and nt > 1, throw=False,
+                           **options)
             sol = jax.tree_util.tree_map(np.asarray, sol)
     except (ValueError, TypeError) as exc:
         raise InputError(f"{stem}: {exc}") from exc
@@ -596,6 +601,13 @@ def _parser():
         metavar="KEY=VALUE",
         help="a preset argument, e.g. --param ratio=10 (repeatable)",
     )
+    run.add_argument(
+        "--progress", action="store_true",
+        help="report each step on stderr as it completes (a host callback: that "
+             "program is not written to the compilation cache)")
+    from ._cache import add_cache_argument
+
+    add_cache_argument(run)
     sub.add_parser("presets", help="list the built-in presets")
     sub.add_parser("examples", help="same as `presets`")
     from ._cli_fit import add_parser as add_fit_parser
@@ -626,7 +638,7 @@ def main(argv=None) -> int:
             raise InputError(f"--n must be >= 2, got {args.n}")
         if args.steps is not None and args.steps < 1:
             raise InputError(f"--steps must be >= 1, got {args.steps}")
-        dtype = _setup_jax(args.float32)
+        dtype = _setup_jax(args.float32, cache=not args.no_cache)
         if args.target == "hertz":
             return _hertz(args, dtype)
         return _run_scene(args, dtype)

@@ -22,9 +22,10 @@ and the model's discretisation error (the fitted curve on a grid twice as fine;
 `--no-check-grid` skips it). Exit status: 0 on success,
 1 when a fit did not converge, 2 for bad input (the message names the bad value).
 
-Compiled programs are cached on disk (`JAXCONTACT_CACHE_DIR`, default
-`~/.cache/jaxcontact/xla`; empty: no cache), so a second run of the same sizes skips
-most of the compilation.
+Compiled programs are cached on disk (`jc.enable_compilation_cache`: folder
+`JAXCONTACT_CACHE_DIR`, default `~/.cache/jaxcontact/xla`; `--no-cache` or
+`JAXCONTACT_NO_CACHE=1`: none), so a second run of the same sizes skips most of the
+compilation.
 
 The probe radius is not in the files: absolute moduli scale as `R^(-1/2)`; relaxation
 times and modulus ratios do not depend on it.
@@ -33,9 +34,14 @@ times and modulus ratios do not depend on it.
 import argparse
 import json
 import math
-import os
 import sys
 from pathlib import Path
+
+from ._cache import (
+    add_cache_argument,
+    cache_disabled_by_environment,
+    enable_compilation_cache,
+)
 
 
 RADIUS_NOTE = ("the probe radius is an input (not in the file): absolute moduli scale "
@@ -49,6 +55,7 @@ class _BadInput(Exception):
 def add_parser(sub):
     """Register `fit` on the `jaxcontact` subcommand parser `sub`."""
     p = sub.add_parser("fit", help="fit a Prony series to AFM indentation files")
+    add_cache_argument(p)
     p.add_argument("files", nargs="+", metavar="FILE",
                    help="force-distance files afmformats reads (e.g. .jpk-force)")
     p.add_argument("--radius", type=float, required=True,
@@ -296,12 +303,8 @@ def run_fit(args) -> int:
         # A persistent compilation cache: the Levenberg-Marquardt solve through the
         # contact model's adjoint compiles for tens of seconds; a second run of the
         # same shapes (another file, the same --n and --samples) loads it instead.
-        cache = os.environ.get("JAXCONTACT_CACHE_DIR",
-                               os.path.join(os.path.expanduser("~"), ".cache",
-                                            "jaxcontact", "xla"))
-        if cache:
-            jax.config.update("jax_compilation_cache_dir", cache)
-            jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
+        if not (args.no_cache or cache_disabled_by_environment()):
+            enable_compilation_cache()
         status = 0
         for path in args.files:
             result, fit, seg = _fit_one(path, args, samples, segments)

@@ -407,29 +407,48 @@ class Scene(eqx.Module):
         return 1
 
 
-def normal_targets(scene: Scene):
+_NOT_INCREASING = "times must be strictly increasing (in the grid's dtype)"
+_TENSION = ("normal force must be finite and >= 0 at every time (a tension cannot be "
+            "carried)")
+
+
+def check_targets(scene: Scene) -> bool:
+    """Check the normal targets of a concrete scene in Python (a ValueError for what
+    `normal_targets` would reject at run time), so that the solve's compiled program
+    holds no host callback and can go into JAX's persistent cache. Returns `False`,
+    checking nothing, when the targets are traced (the solve checks them then)."""
+    if _validate.is_traced((scene.times, scene.grid.size)):
+        return False
+    with jax.ensure_compile_time_eval():
+        values = scene.normal.values(scene.times)
+        times = scene.times.astype(scene.grid.size.dtype)
+    if _validate.is_traced(values):
+        return False
+    values, times = np.asarray(values), np.asarray(times)
+    if times.shape[0] > 1 and not np.all(np.diff(times) > 0):
+        raise ValueError(f"{_NOT_INCREASING}, got {times!r}")
+    if isinstance(scene.normal, Force) and not np.all(values >= 0):
+        raise ValueError(f"{_TENSION}, got {values!r}")
+    return True
+
+
+def normal_targets(scene: Scene, runtime_checks: bool = True):
     """The `(nt,)` normal force or approach targets, as the solve reads them.
 
-    Checked here, inside the solve, with `eqx.error_if` (a run-time error under `jit`):
-    a scene built inside `jit`/`vmap`, changed with `eqx.tree_at`, or with a callable
-    program could otherwise carry a tension (negative normal force) or times that are
-    not strictly increasing (in the grid's dtype) past the constructor's checks.
+    With `runtime_checks`, checked inside the solve with `eqx.error_if` (a run-time
+    error under `jit`): a scene built inside `jit`/`vmap`, changed with `eqx.tree_at`,
+    or with a callable program could otherwise carry a tension (negative normal force)
+    or times that are not strictly increasing (in the grid's dtype) past the
+    constructor's checks. A concrete scene is checked by `check_targets` instead.
     """
     values = scene.normal.values(scene.times)
+    if not runtime_checks:
+        return values
     times = scene.times.astype(scene.grid.size.dtype)
     if times.shape[0] > 1:
-        values = eqx.error_if(
-            values,
-            ~jnp.all(jnp.diff(times) > 0),
-            "times must be strictly increasing (in the grid's dtype)",
-        )
+        values = eqx.error_if(values, ~jnp.all(jnp.diff(times) > 0), _NOT_INCREASING)
     if isinstance(scene.normal, Force):
-        values = eqx.error_if(
-            values,
-            jnp.any(values < 0),
-            "normal force must be finite and >= 0 at every time (a tension cannot be "
-            "carried)",
-        )
+        values = eqx.error_if(values, jnp.any(values < 0), _TENSION)
     return values
 
 

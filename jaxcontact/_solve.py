@@ -10,12 +10,15 @@ import numpy as np
 
 from . import _validate
 from ._history import (
-    DirectHistory, ElasticHistory, RecursiveHistory, constant_scheme_amplification,
+    DirectHistory,
+    ElasticHistory,
+    RecursiveHistory,
+    constant_scheme_amplification,
 )
 from ._loading import Force
 from ._material.elastic import Elastic
 from ._operator import HalfSpace
-from ._scene import Scene, normal_targets, tangential_targets
+from ._scene import Scene, check_targets, normal_targets, tangential_targets
 from ._solution import RESULTS, Solution
 from ._solver.base import AbstractStepSolver, StepGuess, StepProblem
 from ._solver.fallback import Fallback
@@ -39,13 +42,23 @@ class _Controls(eqx.Module):
 def default_solver(controls: _Controls, *, rtol=None, max_steps=2000, max_rounds=100,
                    resync_every=25, precondition=True) -> AbstractStepSolver:
     """The step solver `jc.solve` uses when none is given, from what the scene needs:
+    `Rounds` without a coupled tangential solve (one round is exact), `JointPCG` with
+    one. Only this solver is compiled; a concrete solution with a failed step is solved
+    again with `robust_solver` (see `jc.solve`)."""
+    if controls.nd == 0 or not controls.coupled:
+        return Rounds(rtol=rtol, max_steps=max_steps, max_rounds=max_rounds,
+                      resync_every=resync_every, precondition=precondition)
+    return JointPCG(rtol=rtol, max_steps=max_steps, resync_every=resync_every,
+                    precondition=precondition)
 
-    - no coupled tangential solve: `Rounds` (one round is exact);
-    - coupled: `Fallback(JointPCG(), Rounds())`, the rounds started where the joint
-      iteration gave up;
-    - and a load-controlled tangential direction: that, falling back in turn on
-      `LoadByDisplacement(JointPCG())` (a root search on the displacement).
-    """
+
+def robust_solver(controls: _Controls, *, rtol=None, max_steps=2000, max_rounds=100,
+                  resync_every=25, precondition=True) -> AbstractStepSolver:
+    """The coupled default with its fallbacks: `Fallback(JointPCG(), Rounds())`, the
+    rounds started where the joint iteration gave up, and under tangential load
+    control that falling back in turn on `LoadByDisplacement(JointPCG())` (a root
+    search on the displacement). Compiled only for a scene the joint solver alone
+    did not solve (three solver copies: ~2x the compile time)."""
     rounds = Rounds(rtol=rtol, max_steps=max_steps, max_rounds=max_rounds,
                     resync_every=resync_every, precondition=precondition)
     if controls.nd == 0 or not controls.coupled:
@@ -96,7 +109,8 @@ def _print_progress(step, n_steps):
 @eqx.filter_jit
 def _solve(scene: Scene, operator: HalfSpace, controls: _Controls,
            solver: AbstractStepSolver, adjoint: ImplicitAdjoint, throw: bool,
-           history_kind: str, scheme: str, progress=None) -> Solution:
+           history_kind: str, scheme: str, progress=None,
+           runtime_checks: bool = True) -> Solution:
     grid = scene.grid
     dtype = grid.size.dtype
     nd = controls.nd
@@ -115,7 +129,7 @@ def _solve(scene: Scene, operator: HalfSpace, controls: _Controls,
     friction = scene.friction.astype(dtype)
     area = grid.cell_area
 
-    w_targets = normal_targets(scene).astype(dtype)
+    w_targets = normal_targets(scene, runtime_checks).astype(dtype)
     t_targets, _ = tangential_targets(scene, nd)
     t_targets = t_targets.astype(dtype)
     use_total_slip = scene.slip == "total"
@@ -262,8 +276,13 @@ def solve(
     - `solver`: the step solver, an object (`jc.JointPCG()`, `jc.Rounds()`,
       `jc.Fallback(primary, secondary)`, `jc.LoadByDisplacement(solver)`, ...). `None`
       (default): chosen from the scene (`default_solver`): the rounds (exact in one)
-      without coupling; with coupling the joint iteration, falling back on the rounds
-      and, under tangential load control, on a root search over the displacement.
+      without coupling, the joint iteration with coupling. Only that solver is
+      compiled. A concrete coupled solution with a step that did not converge is
+      solved again, whole, with the fallbacks (`robust_solver`: the joint iteration
+      falling back on the rounds and, under tangential load control, on a root search
+      over the displacement), compiled only then; under `jit`, `vmap` or `grad` there
+      is no second solve (the flags, or `throw`, report the failure: pass
+      `solver=jc.Fallback(...)` to compile the fallbacks into such a program).
     - `rtol`, `max_steps`, `max_rounds`, `resync_every`, `precondition`: options of
       the default solver (only without `solver`; a solver object carries its own):
       relative tolerance of every contact solve (`None`: `1e-8` in float64, `1e-5` in
@@ -353,10 +372,12 @@ def solve(
         normal_force_control=isinstance(scene.normal, Force),
         tangential_force_control=tuple(bool(f) for f in force_control),
     )
+    retry = None
     if solver is None:
-        solver = default_solver(
-            controls, **{name: value for name, value in options.items()
-                         if value is not None})
+        defaults = {name: value for name, value in options.items() if value is not None}
+        solver = default_solver(controls, **defaults)
+        if controls.coupled:
+            retry = robust_solver(controls, **defaults)
     if operator is None:
         operator = _operator_for(scene, nd)
     if progress is True:
@@ -368,8 +389,13 @@ def solve(
     # A failed run-time check (traced bad input, or a step that did not converge with
     # `throw`) raises a ValueError whose first line is its message.
     with _validate.clear_runtime_errors():
-        sol = _solve(scene, operator, controls, solver, adjoint, throw, history, scheme,
-                     progress)
+        runtime_checks = not check_targets(scene)
+        args = (scene, operator, controls, solver, adjoint, throw, history, scheme,
+                progress, runtime_checks)
+        sol = _solve(*args)
         if not _validate.is_traced(sol):
             jax.block_until_ready(sol)
+            if retry is not None and not bool(np.all(sol.converged)):
+                # Compiled only now: the fallbacks cost ~2x the joint solver's compile.
+                sol = jax.block_until_ready(_solve(*args[:3], retry, *args[4:]))
     return _raise_on_failure(sol) if throw else sol

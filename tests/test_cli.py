@@ -96,7 +96,8 @@ def test_run_hertz_float32(tmp_path, capsys):
 
 
 def test_run_preset_writes_npz_metadata_and_plots(tmp_path, capsys):
-    argv = ["run", "zener", "--n", "24", "--steps", "7", "--out", str(tmp_path)]
+    argv = ["run", "zener", "--n", "24", "--steps", "7", "--out", str(tmp_path),
+            "--progress", "--no-cache"]
     assert main(argv) == 0
     captured = capsys.readouterr()
     out = captured.out
@@ -437,3 +438,30 @@ def test_float32_run_checks_the_scene_in_float32(tmp_path, capsys):
     assert main(["run", str(path), "--out", str(tmp_path / "o"), "--float32"]) == 2
     err = capsys.readouterr().err
     assert "times are not strictly increasing in float32" in err, err
+
+
+def test_second_run_loads_the_compiled_program_from_the_cache(tmp_path):
+    """`jaxcontact run` writes its compiled solve to the persistent cache, and a second
+    process solving the same scene loads it instead of compiling (JAX's own log says
+    which); `--no-cache` uses none. A coupled scene: its program takes seconds to
+    compile, above the cache's 1 s threshold."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT), JAX_LOGGING_LEVEL="DEBUG",
+               JAXCONTACT_CACHE_DIR=str(tmp_path / "cache"))
+    env.pop("JAXCONTACT_NO_CACHE", None)
+
+    def run(*extra):
+        argv = [sys.executable, "-m", "jaxcontact", "run", "lc", "--n", "12", "--steps",
+                "3", "--out", str(tmp_path / "out"), "--overwrite", *extra]
+        proc = subprocess.run(argv, capture_output=True, text=True, env=env, cwd=tmp_path)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        return proc.stderr
+
+    first = run()
+    assert "PERSISTENT COMPILATION CACHE MISS for 'jit__solve'" in first
+    assert "Writing jit__solve to persistent compilation cache" in first
+    second = run()
+    assert "Persistent compilation cache hit for 'jit__solve'" in second
+    assert "MISS for 'jit__solve'" not in second
+    third = run("--no-cache")
+    assert "cache hit for 'jit__solve'" not in third
+    assert "Writing jit__solve" not in third
