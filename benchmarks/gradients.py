@@ -52,9 +52,9 @@ def make_loss(n, nt, kind):
         extra = {}
         if kind == "slip":
             extra = dict(x=jc.Displacement(1.5e-6 * times / times[-1]), friction=0.3)
-        elif kind == "coupled":
+        elif kind in ("coupled", "coupled_x"):
             extra = dict(x=jc.Displacement(1.5e-6 * times / times[-1]), friction=0.3,
-                         coupling="full")
+                         coupling="full" if kind == "coupled" else "x")
         return jc.Scene(grid, jc.Sphere(R), material, times, jc.Force(load * ramp), **extra)
 
     def forward(params):

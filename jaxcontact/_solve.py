@@ -41,34 +41,31 @@ class _Controls(eqx.Module):
 
 def default_solver(controls: _Controls, *, rtol=None, max_steps=2000, max_rounds=100,
                    resync_every=25, precondition=True) -> AbstractStepSolver:
-    """The step solver `jc.solve` uses when none is given, from what the scene needs:
-    `Rounds` without a coupled tangential solve (one round is exact), `JointPCG` with
-    one. Only this solver is compiled; a concrete solution with a failed step is solved
-    again with `robust_solver` (see `jc.solve`)."""
-    if controls.nd == 0 or not controls.coupled:
-        return Rounds(rtol=rtol, max_steps=max_steps, max_rounds=max_rounds,
-                      resync_every=resync_every, precondition=precondition)
-    return JointPCG(rtol=rtol, max_steps=max_steps, resync_every=resync_every,
-                    precondition=precondition)
-
-
-def robust_solver(controls: _Controls, *, rtol=None, max_steps=2000, max_rounds=100,
-                  resync_every=25, precondition=True) -> AbstractStepSolver:
-    """The coupled default with its fallbacks: `Fallback(JointPCG(), Rounds())`, the
-    rounds started where the joint iteration gave up, and under tangential load
-    control that falling back in turn on `LoadByDisplacement(JointPCG())` (a root
-    search on the displacement). Compiled only for a scene the joint solver alone
-    did not solve (three solver copies: ~2x the compile time)."""
+    """The step solver `jc.solve` compiles when none is given, from what the scene
+    needs: `Rounds` without a coupled tangential solve (one round is exact);
+    `Fallback(JointPCG(), Rounds())` with one, the rounds started where the joint
+    iteration gave up (it does on contacts of a few cells: Spence's second load
+    stage at 45 cells per radius). The load root search of `robust_solver` is
+    compiled only for a concrete solution that still has a failed step."""
     rounds = Rounds(rtol=rtol, max_steps=max_steps, max_rounds=max_rounds,
                     resync_every=resync_every, precondition=precondition)
     if controls.nd == 0 or not controls.coupled:
         return rounds
     joint = JointPCG(rtol=rtol, max_steps=max_steps, resync_every=resync_every,
                      precondition=precondition)
-    solver = Fallback(joint, rounds)
-    if any(controls.tangential_force_control):
-        solver = Fallback(solver, LoadByDisplacement(joint))
-    return solver
+    return Fallback(joint, rounds)
+
+
+def robust_solver(controls: _Controls, **options) -> AbstractStepSolver | None:
+    """The default solver falling back in turn, under tangential load control, on
+    `LoadByDisplacement(JointPCG())` (a root search on the displacement); `None` when
+    no direction is load-controlled (nothing more to try). `options`: those of
+    `default_solver`. Two more copies of the joint solver: ~2x the compile time."""
+    solver = default_solver(controls, **options)
+    if not (controls.coupled and any(controls.tangential_force_control)):
+        return None
+    joint = solver.primary
+    return Fallback(solver, LoadByDisplacement(joint))
 
 
 def _operator_for(scene: Scene, nd: int) -> HalfSpace:
@@ -276,13 +273,11 @@ def solve(
     - `solver`: the step solver, an object (`jc.JointPCG()`, `jc.Rounds()`,
       `jc.Fallback(primary, secondary)`, `jc.LoadByDisplacement(solver)`, ...). `None`
       (default): chosen from the scene (`default_solver`): the rounds (exact in one)
-      without coupling, the joint iteration with coupling. Only that solver is
-      compiled. A concrete coupled solution with a step that did not converge is
-      solved again, whole, with the fallbacks (`robust_solver`: the joint iteration
-      falling back on the rounds and, under tangential load control, on a root search
-      over the displacement), compiled only then; under `jit`, `vmap` or `grad` there
-      is no second solve (the flags, or `throw`, report the failure: pass
-      `solver=jc.Fallback(...)` to compile the fallbacks into such a program).
+      without coupling; with coupling the joint iteration, falling back on the rounds.
+      A concrete coupled solution under tangential load control that still has a
+      failed step is solved again, whole, with a root search over the displacement
+      added (`robust_solver`), compiled only then; under `jit`, `vmap` or `grad` there
+      is no second solve (the flags, or `throw`, report the failure).
     - `rtol`, `max_steps`, `max_rounds`, `resync_every`, `precondition`: options of
       the default solver (only without `solver`; a solver object carries its own):
       relative tolerance of every contact solve (`None`: `1e-8` in float64, `1e-5` in
@@ -376,8 +371,7 @@ def solve(
     if solver is None:
         defaults = {name: value for name, value in options.items() if value is not None}
         solver = default_solver(controls, **defaults)
-        if controls.coupled:
-            retry = robust_solver(controls, **defaults)
+        retry = robust_solver(controls, **defaults)
     if operator is None:
         operator = _operator_for(scene, nd)
     if progress is True:
@@ -396,6 +390,6 @@ def solve(
         if not _validate.is_traced(sol):
             jax.block_until_ready(sol)
             if retry is not None and not bool(np.all(sol.converged)):
-                # Compiled only now: the fallbacks cost ~2x the joint solver's compile.
+                # Compiled only now: the root search doubles the compile time.
                 sol = jax.block_until_ready(_solve(*args[:3], retry, *args[4:]))
     return _raise_on_failure(sol) if throw else sol

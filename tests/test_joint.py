@@ -32,7 +32,7 @@ import pytest
 from helpers import hertz_radius, same
 
 import jaxcontact as jc
-from jaxcontact._solve import _Controls, robust_solver
+from jaxcontact._solve import _Controls, default_solver, robust_solver
 from jaxcontact._solver.normal import hertzian_guess
 from jaxcontact._solver.precondition import block_preconditioner, continuum_symbols
 
@@ -49,15 +49,15 @@ def slip_distance():
 
 def step_solver(method, nd, fc, rtol=RTOL, max_steps=2000, max_rounds=100):
     """`"joint"`: `jc.JointPCG` alone (a failure shows); `"rounds"`: `jc.Rounds`;
-    `"step"`: the composition `jc.solve` retries with (`robust_solver`)."""
+    `"step"`: the most `jc.solve` tries (`robust_solver`, else `default_solver`)."""
     if method == "joint":
         return jc.JointPCG(rtol=rtol, max_steps=max_steps)
     if method == "rounds":
         return jc.Rounds(rtol=rtol, max_steps=max_steps, max_rounds=max_rounds)
     controls = _Controls(nd=nd, coupled=True, normal_force_control=True,
                          tangential_force_control=fc)
-    return robust_solver(controls, rtol=rtol, max_steps=max_steps,
-                         max_rounds=max_rounds)
+    options = dict(rtol=rtol, max_steps=max_steps, max_rounds=max_rounds)
+    return robust_solver(controls, **options) or default_solver(controls, **options)
 
 
 @functools.cache
