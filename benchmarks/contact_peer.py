@@ -25,18 +25,20 @@ about (-5e-4 dx, -5e-4 dx). What differs: CONTACT's body 2 is "practically rigid
 
 Measured per scene and tolerance:
 
-- CONTACT: wall time of the whole program run (`contact_linux64 2 NAME`: reading the
-  input, influence coefficients, all stages, writing `.out` and the last stage's
-  `.mat`), outer (Panagiotopoulos) iterations summed over the stages, and the inner CG
-  iterations of its normal and tangential solvers (summed; read from a second, untimed
-  run with the flow output `W = 3`, which prints them); contact and stick (adhesion)
-  cells of the last stage from its `.mat` file.
+- CONTACT: wall and CPU time (`RUSAGE_CHILDREN`) of the whole program run
+  (`contact_linux64 2 NAME`: reading the input, influence coefficients, all stages,
+  writing `.out` and the last stage's `.mat`), with flow output `W = 3` (the
+  generator's Spence default is 1; 3 adds two lines per outer iteration, the CG
+  iterations, milliseconds of output); outer (Panagiotopoulos) iterations and inner CG
+  iterations of its normal and tangential solvers, summed over the stages; contact
+  and stick (adhesion) cells of the last stage from its `.mat` file.
 - jaxcontact: `jc.solve(scene, rtol=...)` (or `solver=jc.JointPCG(rtol=...)` with
-  `--solver joint`, on the coupled scenes: it refuses uncoupled ones), `throw=False` so that a step that does not converge is recorded
-  (`all_converged`, `steps_not_converged`) instead of ending the run; the first call
-  after `jax.clear_caches()` (compile + solve, what a new process pays) and the second
-  call (solve only), each to `block_until_ready`; iterations, rounds and fallbacks
-  summed over the steps.
+  `--solver joint`, on the coupled scenes: it refuses uncoupled ones), `throw=False`
+  so that a step that does not converge is recorded (`all_converged`,
+  `steps_not_converged`) instead of ending the run; the first call after
+  `jax.clear_caches()` (compile + solve, what a new process pays) and the second call
+  (solve only), each to `block_until_ready`, wall and process CPU time (all threads);
+  iterations, rounds and fallbacks summed over the steps.
 - both: c/a = sqrt(n_stick / n_contact) on the last stage, and whether the contact and
   stick cells are identical (else how many differ).
 
@@ -59,6 +61,7 @@ import argparse
 import json
 import os
 import re
+import resource
 import shutil
 import subprocess
 import sys
@@ -80,8 +83,9 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 import contact_inputs  # noqa: E402
-import jaxcontact as jc  # noqa: E402
 from hertz import library_info, machine_info  # noqa: E402
+
+import jaxcontact as jc  # noqa: E402
 
 
 # ---- CONTACT ------------------------------------------------------------------------
@@ -91,8 +95,10 @@ def find_contact(path: str | None) -> tuple[str | None, str]:
     """The CONTACT executable and why it is (not) used."""
     path = path or os.environ.get("CONTACT_EXE")
     if not path:
-        return None, ("CONTACT skipped: no executable given (--contact PATH or "
-                      "CONTACT_EXE); build it with ../shared/peers/contact/README.md")
+        return None, (
+            "CONTACT skipped: no executable given (--contact PATH or "
+            "CONTACT_EXE); build it with ../shared/peers/contact/README.md"
+        )
     exe = shutil.which(path) or path
     if not (os.path.isfile(exe) and os.access(exe, os.X_OK)):
         return None, f"CONTACT skipped: {path!r} is not an executable file"
@@ -105,27 +111,46 @@ def _parse_out(text: str) -> dict:
     # one line per outer iteration when MAXOUT > 1 (FLOW >= 1); with MAXOUT = 1
     # (Cattaneo, uncoupled) no line: one pass
     outer = [max(len(re.findall(r"Panag/Out:", c)), 1) for c in cases]
-    norm_cg = [int(v) for v in re.findall(r"Norm: final element division.*ItCG=\s*(\d+)", text)]
-    tang_cg = [int(v) for v in re.findall(r"Tang: final element division.*ItCG=\s*(\d+)", text)]
+    norm_cg = [
+        int(v) for v in re.findall(r"Norm: final element division.*ItCG=\s*(\d+)", text)
+    ]
+    tang_cg = [
+        int(v) for v in re.findall(r"Tang: final element division.*ItCG=\s*(\d+)", text)
+    ]
     stats = None
-    m = re.findall(r"NPOT\s+NCON\s+NADH\s+NSLIP\s+INORM\s+ITANG\s*\n\s*([-\d\s]+?)\n", text)
+    m = re.findall(
+        r"NPOT\s+NCON\s+NADH\s+NSLIP\s+INORM\s+ITANG\s*\n\s*([-\d\s]+?)\n", text
+    )
     if m:
         npot, ncon, nadh, nslip, inorm, itang = (int(v) for v in m[-1].split()[:6])
-        stats = dict(npot=npot, ncon=ncon, nadh=nadh, nslip=nslip, inorm=inorm,
-                     itang=itang)
+        stats = dict(
+            npot=npot, ncon=ncon, nadh=nadh, nslip=nslip, inorm=inorm, itang=itang
+        )
     version = re.search(r"\$Revision:\s*(\d+)", text)
-    warnings = sorted(set(
-        line.strip() for line in text.splitlines()
-        if re.search(r"Diverges|ERROR|WARNING|MaxCG|MaxIn", line)))
-    total = re.search(r"^\|Total\s*\|\s*\d+\s*\|\s*([\d.]+)\s*\|\s*[\d.]+\s*\|\s*([\d.]+)",
-                      text, flags=re.M)
-    return dict(stages=len(cases), outer_per_stage=outer, outer_total=sum(outer),
-                norm_cg_total=sum(norm_cg) if norm_cg else None,
-                tang_cg_total=sum(tang_cg) if tang_cg else None,
-                statistics=stats, warnings=warnings,
-                revision=version.group(1) if version else None,
-                timer_total_cpu_s=float(total.group(1)) if total else None,
-                timer_total_wall_s=float(total.group(2)) if total else None)
+    warnings = sorted(
+        set(
+            line.strip()
+            for line in text.splitlines()
+            if re.search(r"Diverges|ERROR|WARNING|MaxCG|MaxIn", line)
+        )
+    )
+    total = re.search(
+        r"^\|Total\s*\|\s*\d+\s*\|\s*([\d.]+)\s*\|\s*[\d.]+\s*\|\s*([\d.]+)",
+        text,
+        flags=re.M,
+    )
+    return dict(
+        stages=len(cases),
+        outer_per_stage=outer,
+        outer_total=sum(outer),
+        norm_cg_total=sum(norm_cg) if norm_cg else None,
+        tang_cg_total=sum(tang_cg) if tang_cg else None,
+        statistics=stats,
+        warnings=warnings,
+        revision=version.group(1) if version else None,
+        timer_total_cpu_s=float(total.group(1)) if total else None,
+        timer_total_wall_s=float(total.group(2)) if total else None,
+    )
 
 
 def read_mat(path: Path, m: int) -> tuple[np.ndarray, np.ndarray]:
@@ -136,7 +161,7 @@ def read_mat(path: Path, m: int) -> tuple[np.ndarray, np.ndarray]:
     start = next(i for i, line in enumerate(lines) if re.match(r"%\s+I\s+IGS", line))
     contact = np.zeros((m, m), bool)
     stick = np.zeros((m, m), bool)
-    for line in lines[start + 1:]:
+    for line in lines[start + 1 :]:
         if not line.strip() or line.startswith("%"):
             continue
         fields = line.split()
@@ -147,44 +172,48 @@ def read_mat(path: Path, m: int) -> tuple[np.ndarray, np.ndarray]:
     return contact, stick
 
 
-def run_contact(exe: str, text: str, name: str, workdir: Path, m: int,
-                count_text: str | None, repeats: int) -> dict:
-    """Run CONTACT on one input (best wall time of `repeats`); with `count_text`, one
-    more untimed run of that input (flow output W = 3) for the inner CG iterations."""
+def run_contact(exe: str, text: str, name: str, workdir: Path, m: int, repeats: int):
+    """Run CONTACT on one input (best wall time of `repeats`): the `_parse_out` numbers,
+    times, and the last stage's contact and stick masks."""
     case = workdir / name
     case.mkdir(parents=True, exist_ok=True)
     (case / f"{name}.inp").write_text(text)
-    times = []
+    times, cpu = [], []
     for _ in range(repeats):
         for old in case.glob(f"{name}.*.mat"):
             old.unlink()
+        usage = resource.getrusage(resource.RUSAGE_CHILDREN)
         start = time.perf_counter()
-        proc = subprocess.run([exe, "2", name], cwd=case, capture_output=True, text=True)
+        proc = subprocess.run(
+            [exe, "2", name], cwd=case, capture_output=True, text=True
+        )
         times.append(time.perf_counter() - start)
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        cpu.append(after.ru_utime + after.ru_stime - usage.ru_utime - usage.ru_stime)
         if proc.returncode != 0:
-            raise RuntimeError(f"CONTACT failed on {name} (rc {proc.returncode}): "
-                               f"{proc.stdout[-2000:]}{proc.stderr[-2000:]}")
+            raise RuntimeError(
+                f"CONTACT failed on {name} (rc {proc.returncode}): "
+                f"{proc.stdout[-2000:]}{proc.stderr[-2000:]}"
+            )
     out = _parse_out((case / f"{name}.out").read_text(errors="replace"))
     mats = sorted(case.glob(f"{name}.*.mat"))
     contact, stick = read_mat(mats[-1], m)
-    res = dict(wall_s=min(times), wall_s_all=times, **out,
-               n_contact=int(contact.sum()), n_stick=int(stick.sum()),
-               c_over_a=float(np.sqrt(stick.sum() / contact.sum())),
-               mat_file=mats[-1].name)
-    if out["statistics"] and (out["statistics"]["ncon"] != res["n_contact"]
-                              or out["statistics"]["nadh"] != res["n_stick"]):
+    res = dict(
+        wall_s=min(times),
+        wall_s_all=times,
+        cpu_s=cpu[int(np.argmin(times))],
+        cpu_s_all=cpu,
+        **out,
+        n_contact=int(contact.sum()),
+        n_stick=int(stick.sum()),
+        c_over_a=float(np.sqrt(stick.sum() / contact.sum())),
+        mat_file=mats[-1].name,
+    )
+    if out["statistics"] and (
+        out["statistics"]["ncon"] != res["n_contact"]
+        or out["statistics"]["nadh"] != res["n_stick"]
+    ):
         res["warnings"].append("the .mat file's cells differ from CONTACT STATISTICS")
-    if count_text is not None:
-        count = workdir / f"{name}_count"
-        count.mkdir(parents=True, exist_ok=True)
-        (count / f"{name}.inp").write_text(count_text)
-        start = time.perf_counter()
-        subprocess.run([exe, "2", name], cwd=count, capture_output=True, text=True,
-                       check=True)
-        res["count_run_wall_s"] = time.perf_counter() - start
-        c = _parse_out((count / f"{name}.out").read_text(errors="replace"))
-        res["norm_cg_total"], res["tang_cg_total"] = c["norm_cg_total"], c["tang_cg_total"]
-        res["count_run_same_statistics"] = c["statistics"] == out["statistics"]
     return res, contact, stick
 
 
@@ -196,13 +225,18 @@ def read_input(text: str) -> dict:
     line has 7 decimals, so DX = 1/45 is read as 0.0222222, 1e-6 short; the jaxcontact
     scene uses these numbers, not the generator's unrounded ones): grid `m`, `dx`, `xl`
     (left edge), sphere radius `R = 1 / (2 B1)`, `nu`, `G1`, `mu` and per stage the
-    first four numbers of the force line (`FN, CKSI, CETA, CPHI` or `FN, FX, FY, CPHI`)."""
+    first four numbers of the force line (`FN, CKSI, CETA, CPHI` or
+    `FN, FX, FY, CPHI`)."""
     lines = text.splitlines()
 
     def numbers(tag, offset=0):
         i = next(i for i, line in enumerate(lines) if tag in line) + offset
-        return [float(v) for v in re.findall(r"[-+]?\d*\.?\d+(?:[eE][-+]?\d+)?",
-                                             lines[i].split("%")[0])]
+        return [
+            float(v)
+            for v in re.findall(
+                r"[-+]?\d*\.?\d+(?:[eE][-+]?\d+)?", lines[i].split("%")[0]
+            )
+        ]
 
     mx, my, xl, yl, dx, dy = numbers("MX,MY,XL,YL,DX,DY")[:6]
     if (mx, xl, dx) != (my, yl, dy):
@@ -211,10 +245,21 @@ def read_input(text: str) -> dict:
     if b[0] != b[2] or any(b[i] for i in (1, 3, 4, 5)):
         raise ValueError(f"not a centred sphere: B = {b}")
     poiss = numbers("POISS 1,2")
-    forces = [[float(v) for v in line.split()[:4]] for line in lines
-              if re.search(r"\bFN, (CKSI|FX)", line)]
-    return dict(m=int(mx), dx=dx, xl=xl, radius=1 / (2 * b[0]), nu=poiss[0],
-                g1=poiss[2], mu=numbers("FSTAT, FKIN")[0], forces=np.array(forces))
+    forces = [
+        [float(v) for v in line.split()[:4]]
+        for line in lines
+        if re.search(r"\bFN, (CKSI|FX)", line)
+    ]
+    return dict(
+        m=int(mx),
+        dx=dx,
+        xl=xl,
+        radius=1 / (2 * b[0]),
+        nu=poiss[0],
+        g1=poiss[2],
+        mu=numbers("FSTAT, FKIN")[0],
+        forces=np.array(forces),
+    )
 
 
 def _grid_and_sphere(inp: dict):
@@ -233,10 +278,15 @@ def spence_scene(text: str) -> jc.Scene:
     grid, sphere = _grid_and_sphere(inp)
     loads = inp["forces"][:, 0]
     return jc.Scene(
-        grid, sphere, jc.Elastic(inp["g1"], inp["nu"]),
+        grid,
+        sphere,
+        jc.Elastic(inp["g1"], inp["nu"]),
         times=jnp.arange(len(loads), dtype=jnp.float64),
-        normal=jc.Force(jnp.asarray(loads)), friction=inp["mu"], coupling="full",
-        slip="incremental")
+        normal=jc.Force(jnp.asarray(loads)),
+        friction=inp["mu"],
+        coupling="full",
+        slip="incremental",
+    )
 
 
 def cattaneo_scene(text: str) -> jc.Scene:
@@ -244,45 +294,65 @@ def cattaneo_scene(text: str) -> jc.Scene:
     zero, F_x = (FX / (mu FN)) mu FN, F_y = 0; no coupling at nu = 0.5."""
     inp = read_input(text)
     grid, sphere = _grid_and_sphere(inp)
-    (fn, fx_rel, fy_rel, _), = inp["forces"]
+    ((fn, fx_rel, fy_rel, _),) = inp["forces"]
     if fy_rel != 0:
         raise ValueError("contact_peer's Cattaneo scene has F_y = 0")
     return jc.Scene(
-        grid, sphere, jc.Elastic(inp["g1"], inp["nu"]), times=jnp.zeros(1),
-        normal=jc.Force(fn), x=jc.Force(fx_rel * inp["mu"] * fn), friction=inp["mu"],
-        coupling="none" if inp["nu"] == 0.5 else "full")
+        grid,
+        sphere,
+        jc.Elastic(inp["g1"], inp["nu"]),
+        times=jnp.zeros(1),
+        normal=jc.Force(fn),
+        x=jc.Force(fx_rel * inp["mu"] * fn),
+        friction=inp["mu"],
+        coupling="none" if inp["nu"] == 0.5 else "full",
+    )
 
 
-def run_jaxcontact(scene: jc.Scene, rtol: float, solver: str) -> tuple[dict, np.ndarray, np.ndarray]:
+def run_jaxcontact(
+    scene: jc.Scene, rtol: float, solver: str
+) -> tuple[dict, np.ndarray, np.ndarray]:
     if solver == "joint" and scene.coupling == "none":
         solver = "default (JointPCG needs coupling)"  # it refuses uncoupled steps
     if solver == "joint":
-        call = lambda: jc.solve(scene, solver=jc.JointPCG(rtol=rtol),  # noqa: E731
-                                throw=False)
+        options = dict(solver=jc.JointPCG(rtol=rtol))
     else:
-        call = lambda: jc.solve(scene, rtol=rtol, throw=False)  # noqa: E731
+        options = dict(rtol=rtol)
+
+    def call():
+        return jc.solve(scene, throw=False, **options)
+
     jax.clear_caches()
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     sol = call()
     jax.block_until_ready(sol)
-    first = time.perf_counter() - start
-    start = time.perf_counter()
+    first, first_cpu = time.perf_counter() - start, time.process_time() - cpu
+    start, cpu = time.perf_counter(), time.process_time()
     sol = call()
     jax.block_until_ready(sol)
-    second = time.perf_counter() - start
+    second, second_cpu = time.perf_counter() - start, time.process_time() - cpu
     contact = np.asarray(sol.contact[-1])
     stick = np.asarray(sol.stick[-1]) & contact
-    res = dict(solver=solver, first_call_s=first, second_call_s=second, compile_s=first - second,
-               iterations_total=int(sol.iterations.sum()),
-               rounds_total=int(sol.rounds.sum()),
-               fallbacks_total=int(sol.fallbacks.sum()),
-               all_converged=bool(sol.converged.all()),
-               steps_not_converged=[int(k) for k in np.nonzero(~np.asarray(sol.converged))[0]],
-               n_contact=int(contact.sum()), n_stick=int(stick.sum()),
-               c_over_a=float(np.sqrt(stick.sum() / contact.sum())),
-               stick_ratio_last=float(sol.stick_ratio[-1]),
-               edge_contact=bool(np.any(np.asarray(sol.edge_contact)))
-               if hasattr(sol, "edge_contact") else None)
+    res = dict(
+        solver=solver,
+        first_call_s=first,
+        second_call_s=second,
+        compile_s=first - second,
+        first_call_cpu_s=first_cpu,
+        second_call_cpu_s=second_cpu,
+        iterations_total=int(sol.iterations.sum()),
+        rounds_total=int(sol.rounds.sum()),
+        fallbacks_total=int(sol.fallbacks.sum()),
+        all_converged=bool(sol.converged.all()),
+        steps_not_converged=[int(k) for k in np.nonzero(~np.asarray(sol.converged))[0]],
+        n_contact=int(contact.sum()),
+        n_stick=int(stick.sum()),
+        c_over_a=float(np.sqrt(stick.sum() / contact.sum())),
+        stick_ratio_last=float(sol.stick_ratio[-1]),
+        edge_contact=bool(np.any(np.asarray(sol.edge_contact)))
+        if hasattr(sol, "edge_contact")
+        else None,
+    )
     return res, contact, stick
 
 
@@ -294,32 +364,44 @@ def scenes(args) -> list[tuple[str, str, dict]]:
     out = []
     for nu in args.nu:
         for mu in args.mu:
-            out.append((f"spence_nu{nu:g}_mu{mu:g}_N{args.N}_K{args.K}", "spence",
-                        dict(nu=nu, mu=mu, N=args.N, K=args.K)))
+            out.append(
+                (
+                    f"spence_nu{nu:g}_mu{mu:g}_N{args.N}_K{args.K}",
+                    "spence",
+                    dict(nu=nu, mu=mu, N=args.N, K=args.K),
+                )
+            )
     if args.cattaneo_N:
-        out.append((f"cattaneo_N{args.cattaneo_N}", "cattaneo", dict(N=args.cattaneo_N)))
+        out.append(
+            (f"cattaneo_N{args.cattaneo_N}", "cattaneo", dict(N=args.cattaneo_N))
+        )
     return out
 
 
 def one_case(kind, params, rtol, args, exe, workdir, name):
     if kind == "spence":
-        text, meta = contact_inputs.spence_input(params["nu"], params["mu"], params["N"],
-                                                 params["K"], eps=rtol)
-        count_text = contact_inputs.spence_input(params["nu"], params["mu"], params["N"],
-                                                 params["K"], eps=rtol, wflow=3)[0]
+        text, meta = contact_inputs.spence_input(
+            params["nu"], params["mu"], params["N"], params["K"], eps=rtol, wflow=3
+        )
         scene = spence_scene(text)
     else:
-        # the generator's default flow output (W = 3) already prints the CG iterations
+        # the generator's default flow output here is W = 3
         text, meta = contact_inputs.cattaneo_input(params["N"], eps=rtol)
-        count_text = None
         scene = cattaneo_scene(text)
-    row = dict(scene=name, kind=kind, rtol=rtol, eps=rtol, grid=[meta["M"], meta["M"]],
-               parameters={k: v for k, v in meta.items()},
-               load_before=os.getloadavg())
+    row = dict(
+        scene=name,
+        kind=kind,
+        rtol=rtol,
+        eps=rtol,
+        grid=[meta["M"], meta["M"]],
+        parameters={k: v for k, v in meta.items()},
+        load_before=os.getloadavg(),
+    )
     c_masks = None
     if exe:
-        row["contact"], *c_masks = run_contact(exe, text, f"{name}_eps{rtol:g}", workdir,
-                                               meta["M"], count_text, args.repeats)
+        row["contact"], *c_masks = run_contact(
+            exe, text, f"{name}_eps{rtol:g}", workdir, meta["M"], args.repeats
+        )
     row["jaxcontact"], j_contact, j_stick = run_jaxcontact(scene, rtol, args.solver)
     row["load_after"] = os.getloadavg()
     if c_masks is not None:
@@ -328,77 +410,138 @@ def one_case(kind, params, rtol, args, exe, workdir, name):
         row["stick_cells_identical"] = bool(np.array_equal(c_stick, j_stick))
         row["contact_cells_differing"] = int(np.sum(c_contact != j_contact))
         row["stick_cells_differing"] = int(np.sum(c_stick != j_stick))
-        row["ratio_contact_over_jaxcontact"] = (row["contact"]["wall_s"]
-                                                / row["jaxcontact"]["second_call_s"])
+        row["ratio_contact_over_jaxcontact"] = (
+            row["contact"]["wall_s"] / row["jaxcontact"]["second_call_s"]
+        )
+        row["ratio_cpu_contact_over_jaxcontact"] = (
+            row["contact"]["cpu_s"] / row["jaxcontact"]["second_call_cpu_s"]
+        )
         row["ratio_contact_over_jaxcontact_first_call"] = (
-            row["contact"]["wall_s"] / row["jaxcontact"]["first_call_s"])
+            row["contact"]["wall_s"] / row["jaxcontact"]["first_call_s"]
+        )
     return row
 
 
 def print_row(row):
     j = row["jaxcontact"]
-    line = (f"{row['scene']:32s} tol {row['rtol']:.0e}  jc {j['first_call_s']:6.2f} / "
-            f"{j['second_call_s']:6.2f} s it {j['iterations_total']:5d} c/a "
-            f"{j['c_over_a']:.4f} ({j['n_contact']}/{j['n_stick']})")
+    line = (
+        f"{row['scene']:32s} tol {row['rtol']:.0e}  jc {j['first_call_s']:6.2f} / "
+        f"{j['second_call_s']:6.2f} s it {j['iterations_total']:5d} c/a "
+        f"{j['c_over_a']:.4f} ({j['n_contact']}/{j['n_stick']})"
+    )
     if not j["all_converged"]:
         line += f" NOT CONVERGED at steps {j['steps_not_converged'][:5]}"
     if "contact" in row:
         c = row["contact"]
-        line += (f" | CONTACT {c['wall_s']:6.2f} s outer {c['outer_total']} CG "
-                 f"{c['norm_cg_total']}+{c['tang_cg_total']} c/a {c['c_over_a']:.4f} "
-                 f"({c['n_contact']}/{c['n_stick']}) same cells "
-                 f"{row['contact_cells_identical'] and row['stick_cells_identical']} "
-                 f"ratio {row['ratio_contact_over_jaxcontact']:.2f}")
+        line += (
+            f" | CONTACT {c['wall_s']:6.2f} s outer {c['outer_total']} CG "
+            f"{c['norm_cg_total']}+{c['tang_cg_total']} c/a {c['c_over_a']:.4f} "
+            f"({c['n_contact']}/{c['n_stick']}) same cells "
+            f"{row['contact_cells_identical'] and row['stick_cells_identical']} "
+            f"ratio {row['ratio_contact_over_jaxcontact']:.2f} (cpu "
+            f"{c['cpu_s']:.1f} / {j['second_call_cpu_s']:.1f} s: "
+            f"{row['ratio_cpu_contact_over_jaxcontact']:.2f})"
+        )
     print(line, flush=True)
 
 
 def markdown_table(rows) -> str:
-    head = ("| scene | tol | CONTACT [s] | CONTACT outer / CG it (n + t) | jc first call [s] "
-            "| jc second call [s] | jc it | c/a CONTACT | c/a jc | contact cells C / jc "
-            "| stick cells C / jc | cells identical | CONTACT / jc (second call) |")
-    lines = [head, "|" + "---|" * 13]
+    """Times as wall / CPU seconds; the ratios CONTACT over jaxcontact's second call."""
+    head = (
+        "| scene | tol | CONTACT wall / cpu [s] | CONTACT outer / CG it (n + t) "
+        "| jc first call [s] | jc second call wall / cpu [s] | jc it | c/a CONTACT "
+        "| c/a jc | contact cells C / jc | stick cells C / jc | cells identical "
+        "| ratio wall | ratio cpu |"
+    )
+    lines = [head, "|" + "---|" * 14]
     for r in rows:
         j = r["jaxcontact"]
         c = r.get("contact")
+        jc_it = str(j["iterations_total"]) + (
+            "" if j["all_converged"] else " (not converged)"
+        )
         if c:
-            same = ("yes" if r["contact_cells_identical"] and r["stick_cells_identical"]
-                    else f"no ({r['contact_cells_differing']} / "
-                         f"{r['stick_cells_differing']} differ)")
-            cells = (f"{c['wall_s']:.2f}", f"{c['outer_total']} / {c['norm_cg_total']} + "
-                     f"{c['tang_cg_total']}", f"{c['c_over_a']:.4f}",
-                     f"{c['n_contact']} / {j['n_contact']}", f"{c['n_stick']} / {j['n_stick']}",
-                     same, f"{r['ratio_contact_over_jaxcontact']:.2f}")
+            same = (
+                "yes"
+                if r["contact_cells_identical"] and r["stick_cells_identical"]
+                else f"no ({r['contact_cells_differing']} / "
+                f"{r['stick_cells_differing']} differ)"
+            )
+            cells = (
+                f"{c['wall_s']:.2f} / {c['cpu_s']:.2f}",
+                f"{c['outer_total']} / {c['norm_cg_total']} + {c['tang_cg_total']}",
+                f"{c['c_over_a']:.4f}",
+                f"{c['n_contact']} / {j['n_contact']}",
+                f"{c['n_stick']} / {j['n_stick']}",
+                same,
+                f"{r['ratio_contact_over_jaxcontact']:.2f}",
+                f"{r['ratio_cpu_contact_over_jaxcontact']:.2f}",
+            )
         else:
-            cells = ("", "", "", f"- / {j['n_contact']}", f"- / {j['n_stick']}", "", "")
+            cells = (
+                "",
+                "",
+                "",
+                f"- / {j['n_contact']}",
+                f"- / {j['n_stick']}",
+                "",
+                "",
+                "",
+            )
         lines.append(
             f"| {r['scene']} | {r['rtol']:.0e} | {cells[0]} | {cells[1]} | "
-            f"{j['first_call_s']:.2f} | {j['second_call_s']:.2f} | {j['iterations_total']} | "
-            f"{cells[2]} | {j['c_over_a']:.4f} | {cells[3]} | {cells[4]} | {cells[5]} | "
-            f"{cells[6]} |")
+            f"{j['first_call_s']:.2f} | {j['second_call_s']:.2f} / "
+            f"{j['second_call_cpu_s']:.2f} | {jc_it} | {cells[2]} | "
+            f"{j['c_over_a']:.4f} | "
+            f"{cells[3]} | {cells[4]} | {cells[5]} | {cells[6]} | {cells[7]} |"
+        )
     return "\n".join(lines)
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--contact", default=None,
-                        help="CONTACT executable (default: $CONTACT_EXE; none: skipped)")
+    parser.add_argument(
+        "--contact",
+        default=None,
+        help="CONTACT executable (default: $CONTACT_EXE; none: skipped)",
+    )
     parser.add_argument("--nu", type=float, nargs="+", default=[0.3, 0.25])
     parser.add_argument("--mu", type=float, nargs="+", default=[0.2, 0.3])
-    parser.add_argument("--N", type=int, default=45, help="Spence: cells per final radius")
+    parser.add_argument(
+        "--N", type=int, default=45, help="Spence: cells per final radius"
+    )
     parser.add_argument("--K", type=int, default=90, help="Spence: load stages")
-    parser.add_argument("--cattaneo-N", type=int, default=45,
-                        help="Cattaneo-Mindlin: cells per Hertz radius (0: skip)")
-    parser.add_argument("--rtols", type=float, nargs="+", default=[1e-6, 1e-8],
-                        help="jaxcontact rtol = CONTACT EPS")
+    parser.add_argument(
+        "--cattaneo-N",
+        type=int,
+        default=45,
+        help="Cattaneo-Mindlin: cells per Hertz radius (0: skip)",
+    )
+    parser.add_argument(
+        "--rtols",
+        type=float,
+        nargs="+",
+        default=[1e-6, 1e-8],
+        help="jaxcontact rtol = CONTACT EPS",
+    )
     parser.add_argument("--solver", choices=["default", "joint"], default="default")
-    parser.add_argument("--repeats", type=int, default=1,
-                        help="CONTACT runs per case (best wall time)")
+    parser.add_argument(
+        "--repeats", type=int, default=1, help="CONTACT runs per case (best wall time)"
+    )
     parser.add_argument("--quick", action="store_true", help="N = 15, K = 30")
-    parser.add_argument("--one-core", action="store_true",
-                        help="pin this process (and CONTACT) to one CPU")
-    parser.add_argument("--workdir", default=None,
-                        help="keep CONTACT's files here (default: a temporary folder)")
-    parser.add_argument("--out", default=str(ROOT / "benchmarks/results/contact_peer.json"))
+    parser.add_argument(
+        "--one-core",
+        action="store_true",
+        help="pin this process (and CONTACT) to one CPU",
+    )
+    parser.add_argument(
+        "--workdir",
+        default=None,
+        help="keep CONTACT's files here (default: a temporary folder)",
+    )
+    parser.add_argument(
+        "--out", default=str(ROOT / "benchmarks/results/contact_peer.json")
+    )
     args = parser.parse_args()
     if args.quick:
         args.N, args.K = 15, 30
@@ -411,13 +554,25 @@ def main():
     workdir.mkdir(parents=True, exist_ok=True)
 
     results = dict(
-        machine=dict(machine_info(), load_average_start=os.getloadavg(),
-                     niceness=os.nice(0), affinity=sorted(os.sched_getaffinity(0))),
+        machine=dict(
+            machine_info(),
+            load_average_start=os.getloadavg(),
+            niceness=os.nice(0),
+            affinity=sorted(os.sched_getaffinity(0)),
+        ),
         library=library_info(),
         contact=dict(executable=exe, note=why),
-        settings=dict(nu=args.nu, mu=args.mu, N=args.N, K=args.K,
-                      cattaneo_N=args.cattaneo_N, rtols=args.rtols, solver=args.solver,
-                      repeats=args.repeats, one_core=args.one_core),
+        settings=dict(
+            nu=args.nu,
+            mu=args.mu,
+            N=args.N,
+            K=args.K,
+            cattaneo_N=args.cattaneo_N,
+            rtols=args.rtols,
+            solver=args.solver,
+            repeats=args.repeats,
+            one_core=args.one_core,
+        ),
         rows=[],
     )
     start = time.perf_counter()
@@ -435,8 +590,10 @@ def main():
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(results, indent=2))
     print(table)
-    print(f"load average start {results['machine']['load_average_start']} end "
-          f"{results['machine']['load_average_end']}; total {results['total_s']:.0f} s")
+    print(
+        f"load average start {results['machine']['load_average_start']} end "
+        f"{results['machine']['load_average_end']}; total {results['total_s']:.0f} s"
+    )
     print(f"wrote {args.out}; CONTACT files in {workdir}")
 
 
