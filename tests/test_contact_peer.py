@@ -119,7 +119,9 @@ def test_cattaneo_scene_matches_contact_input(peer):
     assert float(scene.x.values(scene.times)[0]) == pytest.approx(
         fx_rel * inp["fric"][0] * fn
     )
-    assert scene.y is None and fy == 0
+    # F_y = 0 prescribed (q_y solved for, as CONTACT does), not y=None (q_y = 0)
+    assert fy == 0 and float(scene.y.values(scene.times)[0]) == 0.0
+    assert scene.tangential_directions == 2
 
 
 def test_read_mat_indexing(peer, tmp_path):
