@@ -352,6 +352,7 @@ def run_jaxcontact(
         fallbacks_total=int(sol.fallbacks.sum()),
         all_converged=bool(sol.converged.all()),
         steps_not_converged=[int(k) for k in np.nonzero(~np.asarray(sol.converged))[0]],
+        steps_with_fallback=[int(k) for k in np.nonzero(np.asarray(sol.fallbacks))[0]],
         n_contact=int(contact.sum()),
         n_stick=int(stick.sum()),
         c_over_a=float(np.sqrt(stick.sum() / contact.sum())),
@@ -621,9 +622,10 @@ def main():
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(results, indent=2))
     print(table)
+    this = results.get("updates", [results])[-1] if args.update else results
     print(
-        f"load average start {results['machine']['load_average_start']} end "
-        f"{results['machine']['load_average_end']}; total {results['total_s']:.0f} s"
+        f"load average start {this['machine']['load_average_start']} end "
+        f"{this['machine']['load_average_end']}; total {this['total_s']:.0f} s"
     )
     print(f"wrote {args.out}; CONTACT files in {workdir}")
 
