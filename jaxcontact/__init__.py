@@ -32,6 +32,7 @@ from ._solve import solve as solve
 from ._sweep import sweep as sweep
 from ._solve_normal import NormalSolution as NormalSolution, solve_normal as solve_normal
 from ._subsurface import subsurface_stress as subsurface_stress
+from ._surface import surface_displacement as surface_displacement
 from ._solver.base import (
     AbstractStepSolver as AbstractStepSolver,
     StepGuess as StepGuess,
