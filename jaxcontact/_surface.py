@@ -34,7 +34,8 @@ def _as_dtype(tree, dtype):
     material: the time-stepping carry keeps the grid's dtype)."""
     return jax.tree_util.tree_map(
         lambda leaf: leaf.astype(dtype)
-        if isinstance(leaf, (jax.Array, np.ndarray)) and jnp.issubdtype(leaf.dtype, jnp.floating)
+        if isinstance(leaf, (jax.Array, np.ndarray))
+        and jnp.issubdtype(leaf.dtype, jnp.floating)
         else leaf,
         tree,
     )
@@ -125,7 +126,8 @@ def surface_displacement(
     if scheme not in ("constant", "linear"):
         raise ValueError(f'scheme must be "constant" or "linear", got {scheme!r}')
     if history not in ("auto", "recursive", "direct"):
-        raise ValueError(f'history must be "auto", "recursive" or "direct", got {history!r}')
+        raise ValueError(
+            f'history must be "auto", "recursive" or "direct", got {history!r}')
     grid = scene.grid
     dtype = grid.size.dtype
     nx, ny = grid.shape
@@ -134,8 +136,9 @@ def surface_displacement(
     shear = jnp.asarray(solution.shear)
     if pressure.shape != (nt, nx, ny) or shear.shape != (nt, 2, nx, ny):
         raise ValueError(
-            f"solution has pressure {pressure.shape} and shear {shear.shape}; the scene "
-            f"needs ({nt}, {nx}, {ny}) and ({nt}, 2, {nx}, {ny}) (its times and grid)")
+            f"solution has pressure {pressure.shape} and shear {shear.shape}; the "
+            f"scene needs ({nt}, {nx}, {ny}) and ({nt}, 2, {nx}, {ny}) (its times and "
+            "grid)")
     if operator is not None:
         if not isinstance(operator, HalfSpace):
             raise TypeError(f"operator must be a jc.HalfSpace, got {operator!r}")
@@ -150,10 +153,13 @@ def surface_displacement(
     else:
         coupling = scene.coupling if coupling is None else coupling
         if coupling not in _COUPLINGS:
-            raise ValueError(f"coupling must be None or one of {_COUPLINGS}, got {coupling!r}")
-        # Every displacement component: u_y too for `"none"` (the xy block, zero when
-        # q_y = 0 and q_x = 0); `"x"` holds no y blocks (semi-coupled: q_y = 0).
+            raise ValueError(
+                f"coupling must be None or one of {_COUPLINGS}, got {coupling!r}")
+        # Every displacement component the coupling has: u_y too for `"none"` (from
+        # q_x through the xy block, which a solve in x alone does not need); `"x"`
+        # holds no y blocks (semi-coupled: q_y = 0, u_y not modelled).
         operator = HalfSpace(grid, coupling, tangential_y=True)
     times = jnp.asarray(scene.times).astype(dtype)
-    traction = jnp.concatenate([shear.astype(dtype), pressure.astype(dtype)[:, None]], 1)
+    traction = jnp.concatenate(
+        [shear.astype(dtype), pressure.astype(dtype)[:, None]], axis=1)
     return _displacements(operator, scene.material, times, traction, history, scheme)

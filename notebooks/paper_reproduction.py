@@ -314,9 +314,8 @@ for k in picks:
     gap = gap0 + uz - sol.approach[k]
     conform = max(conform, float(np.abs(gap[sol.contact[k]]).max() / sol.approach[k]))
     ax[0].plot(x / t1["a0"], -row(uz) * 1e6, color=line.get_color(), label=f"{tk:.2g} tau")
-    ax[0].plot(x / t1["a0"], -lee_radok_profile(np.abs(x), float(ref.contact_radius(tk)),
-                                                t1["radius"]) * 1e6,
-               "o", ms=2, color=line.get_color())
+    lr_uz = lee_radok_profile(np.abs(x), float(ref.contact_radius(tk)), t1["radius"])
+    ax[0].plot(x / t1["a0"], -lr_uz * 1e6, "o", ms=2, color=line.get_color())
     ax[0].plot(
         x / t1["a0"], (row(gap0) - sol.approach[k]) * 1e6, ":", color=line.get_color()
     )
@@ -341,8 +340,8 @@ check(conform < 1e-5, f"the deformed surface fits the sphere in the contact ({co
 # of the approach at 64^2 for the Zener steps; the edge cells of the piecewise-constant
 # pressure).
 prof4, prof4_out = profile_error(scene, sol, U, ref, picks)
-check(prof4 < 0.02, f"the surface is Lee-Radok's profile to {prof4:.1e} of the approach "
-      f"({prof4_out:.1e} outside the contact)")
+check(prof4 < 0.02, f"the surface is Lee-Radok's profile to {prof4:.1e} of the "
+      f"approach ({prof4_out:.1e} outside the contact)")
 growth = radius(scene, sol, -1) / radius(scene, sol, 0)
 u_growth = float(U[-1, 2].max() / U[0, 2].max())
 lr_growth = float(ref.contact_radius(float(sol.times[-1])) / ref.contact_radius(0.0))
@@ -352,9 +351,9 @@ verdict(
     "u_z(0) (jc.surface_displacement), and the whole profile against Lee & Radok's",
     growth > 1.2 and u_growth > 1.5,
     f"a x{growth:.2f} (Lee-Radok x{lr_growth:.2f}), u_z x{u_growth:.2f} (Lee-Radok "
-    f"x{lr_growth ** 2:.2f}); the profile is Lee-Radok's to {prof4:.1e} of the approach "
-    f"({prof4_out:.1e} outside the contact) and fits the sphere in the contact to "
-    f"{conform:.0e}",
+    f"x{lr_growth ** 2:.2f}); the profile is Lee-Radok's to {prof4:.1e} of the "
+    f"approach ({prof4_out:.1e} outside the contact) and fits the sphere in the "
+    f"contact to {conform:.0e}",
     values=dict(radius_growth=growth, uz_growth=u_growth, lee_radok_growth=lr_growth,
                 profile_err=prof4, profile_err_outside=prof4_out, conform=conform),
 )
@@ -435,8 +434,9 @@ for k in picks_of(sol, 4):
     surf = gap0 + U[k, 2] - sol.approach[k]  # the deformed sphere above the rigid plane
     (line,) = ax.plot(x / t1["a0"], row(surf) * 1e6, label=f"{sol.times[k]:.2g} tau")
     a_k = float(ref.contact_radius(float(sol.times[k])))
-    lr_surf = (np.hypot(xg, yg) ** 2 / (2 * t1["radius"])
-               + lee_radok_profile(np.hypot(xg, yg), a_k, t1["radius"]) - a_k**2 / t1["radius"])
+    rg = np.hypot(xg, yg)
+    lr_surf = (rg**2 / (2 * t1["radius"]) + lee_radok_profile(rg, a_k, t1["radius"])
+               - a_k**2 / t1["radius"])
     ax.plot(x / t1["a0"], row(lr_surf) * 1e6, "o", ms=2, color=line.get_color())
     flat = max(flat, float(np.abs(surf[sol.contact[k]]).max() / sol.approach[k]))
     sep7 = max(sep7, float(np.abs(surf - lr_surf).max() / (a_k**2 / t1["radius"])))
@@ -445,8 +445,8 @@ ax.set(xlabel="x / a0", ylabel="sphere surface above the plane [um]", ylim=(-1, 
        title="Fig. 7: viscoelastic sphere on a rigid plane (dots: Lee-Radok)")
 ax.legend(fontsize=7)
 show(fig, "fig07_swapped")
-check(sep7 < 0.02, f"the swapped sphere stands off the plane as Lee-Radok's profile says, "
-      f"to {sep7:.1e} of the approach")
+check(sep7 < 0.02, f"the swapped sphere stands off the plane as Lee-Radok's profile "
+      f"says, to {sep7:.1e} of the approach")
 verdict(
     "Fig. 7", "with the bodies swapped the pressure and displacement are those of "
     "Figs. 4-5; only the geometry changes",
@@ -570,14 +570,15 @@ fig9, prof9 = {}, {}
 for a, ratio in zip(ax, (2, 10)):
     scene, sol = zener[ratio]
     U9 = np.asarray(jc.surface_displacement(scene, sol))
-    ref9 = jc.LeeRadok(P.TABLE2["radius"], float(scene.material.poisson), scene.material,
-                       lambda t: W * (t >= 0))
+    ref9 = jc.LeeRadok(P.TABLE2["radius"], float(scene.material.poisson),
+                       scene.material, lambda t: W * (t >= 0))
     xz = np.asarray(scene.grid.x)
     for k in picks_of(sol):
-        (line,) = a.plot(xz / A0, -row(U9[k, 2]) * 1e6, label=f"{sol.times[k] / TAU:.1f} tau")
+        (line,) = a.plot(xz / A0, -row(U9[k, 2]) * 1e6,
+                         label=f"{sol.times[k] / TAU:.1f} tau")
         a_k = float(ref9.contact_radius(float(sol.times[k])))
-        a.plot(xz / A0, -lee_radok_profile(np.abs(xz), a_k, P.TABLE2["radius"]) * 1e6, "o",
-               ms=2, color=line.get_color())
+        lr_uz = lee_radok_profile(np.abs(xz), a_k, P.TABLE2["radius"])
+        a.plot(xz / A0, -lr_uz * 1e6, "o", ms=2, color=line.get_color())
     prof9[ratio] = profile_error(scene, sol, U9, ref9, picks_of(sol))
     fig9[ratio] = (U9[-1, 2].max() / U9[0, 2].max(),
                    radius(scene, sol, -1) / radius(scene, sol, 0))
@@ -589,7 +590,8 @@ check(prof9[2][0] < 0.02, f"ratio 2: the surface is Lee-Radok's profile to "
       f"{prof9[2][0]:.1e} of the approach ({prof9[2][1]:.1e} outside the contact)")
 if not CI:  # at CI size ratio 10 runs 9 points, an unstable step (see Fig. 8d)
     check(prof9[10][0] < 0.02, f"ratio 10: the surface is Lee-Radok's profile to "
-          f"{prof9[10][0]:.1e} of the approach ({prof9[10][1]:.1e} outside the contact)")
+          f"{prof9[10][0]:.1e} of the approach ({prof9[10][1]:.1e} outside the "
+          "contact)")
 verdict(
     "Fig. 9", "the surface of the higher ratio creeps far more and the contact becomes "
     "more conformal",

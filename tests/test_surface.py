@@ -66,7 +66,8 @@ def test_elastic_hertz_profile_inside_and_outside(hertz):
     _, _, r = radii(scene)
     ref = jc.Hertz(scene.indenter.radius, 0.15, scene.material.shear_modulus,
                    scene.material.poisson)
-    a, radius, delta = float(ref.contact_radius), float(scene.indenter.radius), float(ref.approach)
+    a, delta = float(ref.contact_radius), float(ref.approach)
+    radius = float(scene.indenter.radius)
     err = np.abs(u[0, 2] - hertz_profile(r, a, radius)) / delta
     contact = np.asarray(sol.contact[0])
     # 64^2 over 4a (32 cells across the contact): measured 2.3e-4 inside, 7.5e-4
