@@ -4,34 +4,22 @@ A rigid indenter against a linear (visco)elastic half-space, by influence
 coefficients, DC-FFT and conjugate-gradient contact solvers.
 """
 
-from . import presets as presets
-from ._afm import AFMCurve as AFMCurve
-from ._afm import read_afm as read_afm
-from ._analytic import Hertz as Hertz
-from ._analytic import LeeRadok as LeeRadok
+from ._afm import AFMCurve as AFMCurve, read_afm as read_afm
+from ._analytic import Hertz as Hertz, LeeRadok as LeeRadok
 from ._cache import enable_compilation_cache as enable_compilation_cache
 from ._fit import (
-    IndentationData as IndentationData,
-)
-from ._fit import (
-    PronyFit as PronyFit,
-)
-from ._fit import (
     fit_prony as fit_prony,
+    IndentationData as IndentationData,
+    PronyFit as PronyFit,
 )
 from ._grid import Grid as Grid
 from ._indenter import (
     AbstractIndenter as AbstractIndenter,
-)
-from ._indenter import (
     Sphere as Sphere,
-)
-from ._indenter import (
     Surface as Surface,
 )
 from ._influence import influence_coefficients as influence_coefficients
-from ._loading import Displacement as Displacement
-from ._loading import Force as Force
+from ._loading import Displacement as Displacement, Force as Force
 from ._material.base import AbstractMaterial as AbstractMaterial
 from ._material.base import CreepSeries as CreepSeries
 from ._material.elastic import Elastic as Elastic
@@ -40,21 +28,16 @@ from ._material.prony import Prony as Prony
 from ._material.zener import Zener as Zener
 from ._operator import HalfSpace as HalfSpace
 from ._scene import Scene as Scene
-from ._solution import RESULTS as RESULTS
-from ._solution import Solution as Solution
+from ._solution import RESULTS as RESULTS, Solution as Solution
 from ._solve import solve as solve
-from ._solve_normal import NormalSolution as NormalSolution
-from ._solve_normal import solve_normal as solve_normal
+from ._sweep import sweep as sweep
+from ._solve_normal import NormalSolution as NormalSolution, solve_normal as solve_normal
+from ._subsurface import subsurface_stress as subsurface_stress
+from ._surface import surface_displacement as surface_displacement
 from ._solver.base import (
     AbstractStepSolver as AbstractStepSolver,
-)
-from ._solver.base import (
     StepGuess as StepGuess,
-)
-from ._solver.base import (
     StepProblem as StepProblem,
-)
-from ._solver.base import (
     StepResult as StepResult,
 )
 from ._solver.fallback import Fallback as Fallback
@@ -63,8 +46,7 @@ from ._solver.joint import JointPCG as JointPCG
 from ._solver.load_search import LoadByDisplacement as LoadByDisplacement
 from ._solver.normal import PolonskyKeer as PolonskyKeer
 from ._solver.rounds import Rounds as Rounds
-from ._subsurface import subsurface_stress as subsurface_stress
-from ._sweep import sweep as sweep
+from . import presets as presets
 from ._validate import EdgeContactWarning as EdgeContactWarning
 from ._validate import TimeStepWarning as TimeStepWarning
 

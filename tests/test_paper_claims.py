@@ -128,3 +128,26 @@ def test_committed_table_agrees_with_ci(run):
     for study in AGREE:
         assert committed[study]["verdict"] == v[study]["verdict"], study
     assert all(c["why"] for c in committed.values() if c["verdict"] == "differs")
+
+
+def test_page_is_generated_from_the_committed_tables():
+    """benchmarks/paper_reproduction.md is what benchmarks/paper_page.py makes of the
+    committed verdict tables (no hand-typed numbers), every study of the paper-size
+    table is on it, and every figure it shows is committed."""
+    import importlib.util
+    import re
+
+    spec = importlib.util.spec_from_file_location(
+        "paper_page", ROOT / "benchmarks" / "paper_page.py")
+    page = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(page)
+    assert page.main(["--check"]) == 0, "run: python benchmarks/paper_page.py"
+    text = page.PAGE.read_text(encoding="utf-8")
+    with open(page.TABLES["paper"], encoding="utf-8") as f:
+        paper = json.load(f)
+    for v in paper["verdicts"]:
+        assert f"| {v['study']} |" in text, v["study"]
+    shown = re.findall(r"\]\((results/paper_figures/[^)]+)\)", text)
+    assert len(set(shown)) >= 20
+    for rel in shown:
+        assert (ROOT / "benchmarks" / rel).is_file(), rel
