@@ -12,6 +12,7 @@ from ._fit import (
     PronyFit as PronyFit,
 )
 from ._grid import Grid as Grid
+from ._dataset import load as load
 from ._indenter import (
     AbstractIndenter as AbstractIndenter,
     Sphere as Sphere,
@@ -31,7 +32,7 @@ from ._solution import RESULTS as RESULTS, Solution as Solution
 from ._solve import solve as solve
 from ._sweep import sweep as sweep
 from ._solve_normal import NormalSolution as NormalSolution, solve_normal as solve_normal
-from ._subsurface import subsurface_stress as subsurface_stress
+from ._subsurface import Stress as Stress, subsurface_stress as subsurface_stress
 from ._solver.base import (
     AbstractStepSolver as AbstractStepSolver,
     StepGuess as StepGuess,
