@@ -51,3 +51,23 @@ from ._validate import TimeStepWarning as TimeStepWarning
 
 
 __version__ = "0.1.0"
+
+# The public API (what the documentation's API reference lists; tests/test_docs.py
+# checks that it names every public re-export above and nothing else).
+__all__ = [
+    # Scenes and solving
+    "Grid", "Sphere", "Surface", "AbstractIndenter", "Force", "Displacement",
+    "Scene", "solve", "Solution", "RESULTS", "sweep",
+    "solve_normal", "NormalSolution", "HalfSpace", "influence_coefficients",
+    "subsurface_stress", "Stress", "load",
+    # Materials
+    "AbstractMaterial", "Elastic", "Maxwell", "Zener", "Prony", "CreepSeries",
+    # Step solvers and gradients
+    "AbstractStepSolver", "PolonskyKeer", "Rounds", "JointPCG", "Fallback",
+    "LoadByDisplacement", "ImplicitAdjoint", "StepProblem", "StepGuess", "StepResult",
+    # Analytic references, fitting, AFM files
+    "Hertz", "LeeRadok", "fit_prony", "IndentationData", "PronyFit", "read_afm",
+    "AFMCurve",
+    # Presets and warnings
+    "presets", "EdgeContactWarning", "TimeStepWarning",
+]
