@@ -526,7 +526,7 @@ def fit_dataset(fit, *, units=None, attrs: dict | None = None) -> xr.Dataset:
         data_vars[prefix + "poisson"] = ((), _np(material.poisson), _attrs(
             "1", f"{label} Poisson's ratio", table))
     data_vars.update({
-        "std": ("parameter", np.array(std),
+        "log_std": ("parameter", np.array(std),
                 _attrs("1", "Gauss-Newton standard deviation of ln(parameter)", table)),
         "gradient": ("parameter", np.array(gradient),
                      _attrs("1", "d(loss) / d(ln parameter) at the result", table)),

@@ -371,8 +371,9 @@ class PronyFit(eqx.Module):
         `arm` (the Maxwell arms, by increasing `tau`), `parameter` and `parameter_2`
         (`parameter_names`), `iteration`; variables `target`, `curve`, `residual`
         (on `time`, in force or length units by `kind`), the fitted `g_inf`, `g`,
-        `tau`, `poisson` and the starting `initial_*` values, `std` and `gradient`
-        (of the natural logs, dimensionless), `covariance` (`parameter` x
+        `tau`, `poisson` and the starting `initial_*` values, `log_std` (this class's
+        `std`; renamed: `Dataset.std` is a method) and `gradient` (of the natural
+        logs, dimensionless), `covariance` (`parameter` x
         `parameter_2`) and `loss_history`; attributes `kind`, `loss`, `converged`
         and `solves_converged` (0 or 1: netCDF has no boolean attribute), `message`,
         `optimiser`, the step counts, `noise`, `discretisation` (NaN when not

@@ -207,7 +207,7 @@ def test_fit_round_trip(tmp_path):
     np.testing.assert_array_equal(back["tau"].values, [0.1, 2.0])
     np.testing.assert_array_equal(back["initial_tau"].values, [0.2, 1.0])
     assert float(back["g_inf"]) == 100.0 and float(back["poisson"]) == 0.5
-    np.testing.assert_array_equal(back["std"].values, [0.1, 0.2, 0.3, 0.4, 0.5])
+    np.testing.assert_array_equal(back["log_std"].values, [0.1, 0.2, 0.3, 0.4, 0.5])
     np.testing.assert_array_equal(back["gradient"].sel(parameter="tau_2"), 5e-9)
     assert list(back["parameter"].values) == list(names)
     assert back["target"].attrs["units"] == "m" and back["g"].attrs["units"] == "Pa"
