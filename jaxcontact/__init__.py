@@ -13,6 +13,7 @@ from ._fit import (
     PronyFit as PronyFit,
 )
 from ._grid import Grid as Grid
+from ._dataset import load as load
 from ._indenter import (
     AbstractIndenter as AbstractIndenter,
     Sphere as Sphere,
@@ -32,7 +33,7 @@ from ._solution import RESULTS as RESULTS, Solution as Solution
 from ._solve import solve as solve
 from ._sweep import sweep as sweep
 from ._solve_normal import NormalSolution as NormalSolution, solve_normal as solve_normal
-from ._subsurface import subsurface_stress as subsurface_stress
+from ._subsurface import Stress as Stress, subsurface_stress as subsurface_stress
 from ._surface import surface_displacement as surface_displacement
 from ._solver.base import (
     AbstractStepSolver as AbstractStepSolver,
@@ -52,3 +53,24 @@ from ._validate import TimeStepWarning as TimeStepWarning
 
 
 __version__ = "0.1.0"
+
+# The public API (what the documentation's API reference lists; tests/test_docs.py
+# checks that it names every public re-export above and nothing else).
+__all__ = [
+    # Scenes and solving
+    "Grid", "Sphere", "Surface", "AbstractIndenter", "Force", "Displacement",
+    "Scene", "solve", "Solution", "RESULTS", "sweep",
+    "solve_normal", "NormalSolution", "HalfSpace", "influence_coefficients",
+    "subsurface_stress", "Stress", "surface_displacement", "load",
+    "enable_compilation_cache",
+    # Materials
+    "AbstractMaterial", "Elastic", "Maxwell", "Zener", "Prony", "CreepSeries",
+    # Step solvers and gradients
+    "AbstractStepSolver", "PolonskyKeer", "Rounds", "JointPCG", "Fallback",
+    "LoadByDisplacement", "ImplicitAdjoint", "StepProblem", "StepGuess", "StepResult",
+    # Analytic references, fitting, AFM files
+    "Hertz", "LeeRadok", "fit_prony", "IndentationData", "PronyFit", "read_afm",
+    "AFMCurve",
+    # Presets and warnings
+    "presets", "EdgeContactWarning", "TimeStepWarning",
+]

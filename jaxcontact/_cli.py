@@ -2,13 +2,16 @@
 
     jaxcontact presets                                   list the built-in scenes
     jaxcontact run PRESET_OR_SCENE_FILE --out DIR [--n N] [--steps K] [--float32]
-                   [--param KEY=VALUE ...] [--overwrite]
+                   [--param KEY=VALUE ...] [--overwrite] [--format netcdf|npz]
 
 `run hertz` solves the elastic Hertz indentation and prints it beside Hertz theory.
 Any other preset (`jc.presets`) or a TOML scene file (schema: README, "Scene files")
-is solved over its time axis with `jc.solve`; the result goes to `DIR/NAME.npz` (every
-field of the `jc.Solution`, the grid, and a JSON `metadata` string: preset or file,
-parameters, units, versions) and to PNG plots. `DIR` is created and checked before the
+is solved over its time axis with `jc.solve`; the result goes to `DIR/NAME.nc` (netCDF-4:
+`Solution.to_xarray(scene)`, every field with named dimensions and units, the scene in
+the attributes, and a JSON `metadata` attribute: preset or file, parameters, units,
+versions; `jc.load` reads it back) or, with `--format npz`, to `DIR/NAME.npz` (the same
+fields as plain arrays, the grid's `x`, `y` and the `metadata` string), and to PNG
+plots. `DIR` is created and checked before the
 solve; outputs already in it are replaced only with `--overwrite`. Exit status: 0 on
 success, 1 when a time step did not converge, 2 for bad input (unknown preset,
 malformed TOML, bad values, an output folder that cannot be written, existing outputs
@@ -18,7 +21,6 @@ without `--overwrite`).
 import argparse
 import ast
 import json
-import platform
 import sys
 import time
 from pathlib import Path
@@ -64,17 +66,9 @@ class InputError(Exception):
 
 
 def _versions() -> dict:
-    import jax
-    import numpy as np
+    from ._dataset import versions
 
-    import jaxcontact as jc
-
-    return {
-        "jaxcontact": jc.__version__,
-        "jax": jax.__version__,
-        "numpy": np.__version__,
-        "python": platform.python_version(),
-    }
+    return versions()
 
 
 def _parse_param(text: str):
@@ -182,9 +176,12 @@ def _prepare_out(out: Path, names, overwrite: bool) -> Path:
     return out
 
 
-def _scene_outputs(stem: str) -> list:
+_SUFFIX = {"netcdf": ".nc", "npz": ".npz"}
+
+
+def _scene_outputs(stem: str, fmt: str = "netcdf") -> list:
     """Every file `_run_scene` may write for `stem` (plots only when they apply)."""
-    return [f"{stem}.npz"] + [
+    return [f"{stem}{_SUFFIX[fmt]}"] + [
         f"{stem}_{kind}.png" for kind in ("profiles", "history", "stick")
     ]
 
@@ -205,7 +202,8 @@ def _hertz(args, dtype) -> int:
         raise InputError(
             f"--steps: the hertz example is one load step, got {args.steps}"
         )
-    out = _prepare_out(Path(args.out), ["hertz.npz", "hertz.png"], args.overwrite)
+    result = f"hertz{_SUFFIX[args.format]}"
+    out = _prepare_out(Path(args.out), [result, "hertz.png"], args.overwrite)
     scene = jc.presets.hertz(n=n, dtype=dtype)
     grid, material = scene.grid, scene.material
     radius = float(scene.indenter.radius)
@@ -264,17 +262,26 @@ def _hertz(args, dtype) -> int:
         version=jc.__version__,
         versions=_versions(),
     )
-    np.savez(
-        out / "hertz.npz",
-        x=np.asarray(grid.x),
-        y=np.asarray(grid.y),
-        pressure=np.asarray(sol.pressure),
-        gap=np.asarray(sol.gap),
-        contact=np.asarray(sol.contact),
-        approach=float(sol.approach),
-        metadata=json.dumps(meta),
-    )
-    print(f"wrote {out / 'hertz.npz'}")
+    if args.format == "npz":
+        np.savez(
+            out / result,
+            x=np.asarray(grid.x),
+            y=np.asarray(grid.y),
+            pressure=np.asarray(sol.pressure),
+            gap=np.asarray(sol.gap),
+            contact=np.asarray(sol.contact),
+            approach=float(sol.approach),
+            metadata=json.dumps(meta),
+        )
+    else:
+        from ._dataset import to_netcdf
+
+        ds = sol.to_xarray(
+            grid, material=material, indenter=scene.indenter,
+            attrs={"metadata": json.dumps(meta), "preset": "hertz"},
+        )
+        to_netcdf(ds, out / result)
+    print(f"wrote {out / result}")
     plt = _pyplot()
     if plt is None:
         return 0 if bool(sol.converged) else 1
@@ -413,7 +420,7 @@ def _run_scene(args, dtype) -> int:
     import jaxcontact as jc
 
     stem, scene, options, meta = _scene_from_args(args, dtype)
-    out = _prepare_out(Path(args.out), _scene_outputs(stem), args.overwrite)
+    out = _prepare_out(Path(args.out), _scene_outputs(stem, args.format), args.overwrite)
     info = _describe(scene)
     nt = info["nt"]
     precision = np.dtype(dtype).name
@@ -455,21 +462,31 @@ def _run_scene(args, dtype) -> int:
         wall_time_s=elapsed,
         converged=n_bad == 0,
     )
-    arrays = {name: np.asarray(getattr(sol, name)) for name in SOLUTION_FIELDS}
-    np.savez(
-        out / f"{stem}.npz",
-        x=np.asarray(scene.grid.x),
-        y=np.asarray(scene.grid.y),
-        metadata=json.dumps(meta, default=str),
-        **arrays,
-    )
-    print(f"wrote {out / (stem + '.npz')}")
+    result = out / f"{stem}{_SUFFIX[args.format]}"
+    if args.format == "npz":
+        arrays = {name: np.asarray(getattr(sol, name)) for name in SOLUTION_FIELDS}
+        np.savez(
+            result,
+            x=np.asarray(scene.grid.x),
+            y=np.asarray(scene.grid.y),
+            metadata=json.dumps(meta, default=str),
+            **arrays,
+        )
+    else:
+        from ._dataset import to_netcdf
+
+        ds = sol.to_xarray(
+            scene, solve_options=options,
+            attrs={"metadata": json.dumps(meta, default=str), "name": stem},
+        )
+        to_netcdf(ds, result)
+    print(f"wrote {result}")
     for path in _standard_plots(scene, sol, out, stem):
         print(f"wrote {path}")
     if n_bad:
         print(
             f"warning: {n_bad} time step(s) did not converge (see 'converged' in the "
-            "npz)",
+            f"{result.name})",
             file=sys.stderr,
         )
         return 1
@@ -593,6 +610,14 @@ def _parser():
     )
     run.add_argument(
         "--float32", action="store_true", help="single precision (default: float64)"
+    )
+    run.add_argument(
+        "--format",
+        choices=("netcdf", "npz"),
+        default="netcdf",
+        help="result file: netcdf (default; NAME.nc, read with jc.load or "
+        "xarray.open_dataset) or npz (NAME.npz, plain arrays and a JSON metadata "
+        "string)",
     )
     run.add_argument(
         "--param",

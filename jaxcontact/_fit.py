@@ -358,6 +358,31 @@ class PronyFit(eqx.Module):
     noise: float
     discretisation: float | None = None
 
+    def to_xarray(self, *, units=None, attrs=None):
+        """This fit as a labelled `xarray.Dataset`.
+
+        **Arguments:**
+
+        - `units`: unit labels, `None` / `"SI"` (m, N, Pa, s) or a dict (see
+          `jc.Solution.to_xarray`); nothing is converted.
+        - `attrs`: extra global attributes.
+
+        **Returns:** a Dataset with dimensions `time` (the data's times [time]),
+        `arm` (the Maxwell arms, by increasing `tau`), `parameter` and `parameter_2`
+        (`parameter_names`), `iteration`; variables `target`, `curve`, `residual`
+        (on `time`, in force or length units by `kind`), the fitted `g_inf`, `g`,
+        `tau`, `poisson` and the starting `initial_*` values, `log_std` (this class's
+        `std`; renamed: `Dataset.std` is a method) and `gradient` (of the natural
+        logs, dimensionless), `covariance` (`parameter` x
+        `parameter_2`) and `loss_history`; attributes `kind`, `loss`, `converged`
+        and `solves_converged` (0 or 1: netCDF has no boolean attribute), `message`,
+        `optimiser`, the step counts, `noise`, `discretisation` (NaN when not
+        computed) and `material` (JSON).
+        """
+        from ._dataset import fit_dataset
+
+        return fit_dataset(self, units=units, attrs=attrs)
+
 
 # ---------------------------------------------------------------------------------------
 # Set-up helpers.

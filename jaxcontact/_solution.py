@@ -83,6 +83,54 @@ class Solution(eqx.Module):
         """
         return edge_ring(self.contact)
 
+    def to_xarray(self, scene, *, units=None, solve_options=None, batch=None,
+                  attrs=None):
+        """This solution as a labelled `xarray.Dataset` (write it with
+        `ds.to_netcdf(path)`, read it back with `jc.load(path)`).
+
+        **Main arguments:**
+
+        - `scene`: the `jc.Scene` that was solved (the solution does not hold the
+          grid): it gives the coordinates and the attributes.
+
+        **Other arguments:**
+
+        - `units`: the unit labels of the scene's inputs. jaxcontact is unit-agnostic
+          (any consistent set; stress = force / length^2), so this only labels:
+          `None` or `"SI"` (default: m, N, Pa, s, as the presets use) or a dict
+          `{"length": "um", "force": "uN", "time": "s"}` (`"stress"` optional).
+        - `solve_options`: the keyword arguments given to `jc.solve`, recorded as the
+          JSON attribute `solve_options` (solver objects by their `repr`).
+        - `batch`: for a `jc.sweep` result (a leading batch axis), coordinates along
+          the `batch` dimension, e.g. `{"friction": mus}`.
+        - `attrs`: extra global attributes (strings or numbers).
+
+        **Returns:** an `xarray.Dataset` with
+
+        - dimensions `time` (`nt`), `x` (`nx`), `y` (`ny`), `component` (`"x"`,
+          `"y"`), and `batch` first for a sweep;
+        - coordinates `time` [time], `x`, `y` (cell centres, `grid.x`, `grid.y`)
+          [length], `component`; for a sweep whose `times` differ per member a 2-D
+          coordinate `times` (batch, time) instead of `time`;
+        - one variable per field of this class, same names and shapes (`shear` and
+          the tangential vectors along `component`), plus `result` (the integer
+          `jc.RESULTS` code, CF `flag_values` / `flag_meanings`), `edge_contact`
+          and `initial_gap` (`(x, y)`, the indenter's gap `h0` [length]); each with
+          `units` and `long_name` attributes (masks, counts and ratios: `"1"`);
+        - attributes: `scene` (JSON: grid, indenter, material, the loads evaluated
+          at the times, friction, coupling, slip), `material`, `indenter`, `loads`
+          (JSON), `grid_shape`, `grid_size`, `grid_periodic`, `friction`, `coupling`,
+          `slip`, `solve_options` (JSON), `dtype`, `jaxcontact_version`,
+          `jax_version`, `versions` (JSON), `unit_system` (JSON).
+
+        Booleans stay `bool` in memory; in a netCDF file xarray stores them as int8
+        and `jc.load` / `xarray.open_dataset` decode them back.
+        """
+        from ._dataset import solution_dataset
+
+        return solution_dataset(self, scene, units=units, solve_options=solve_options,
+                                batch=batch, attrs=attrs)
+
 
 def edge_ring(contact: Bool[Array, "... nx ny"]) -> Bool[Array, "..."]:
     """True where any cell of the outer ring of the last two axes is set."""

@@ -54,6 +54,27 @@ class NormalSolution(eqx.Module):
         """Some contact cell lies in the outer ring of cells of the grid."""
         return edge_ring(self.contact)
 
+    def to_xarray(self, grid, *, material=None, indenter=None, units=None, attrs=None):
+        """This solution as a labelled `xarray.Dataset` (see `jc.Solution.to_xarray`).
+
+        **Arguments:**
+
+        - `grid`: the `jc.Grid` that was solved (for the `x`, `y` coordinates).
+        - `material`, `indenter`: optional, recorded as JSON attributes.
+        - `units`: unit labels, `None` / `"SI"` (m, N, Pa) or a dict (see
+          `jc.Solution.to_xarray`); nothing is converted.
+        - `attrs`: extra global attributes.
+
+        **Returns:** a Dataset with dimensions `x`, `y` (cell centres [length]); the
+        fields `pressure`, `gap`, `contact`, `displacement` on `(x, y)` and the
+        scalars `approach`, `normal_force`, `iterations`, `residual`, `converged`,
+        `applications`, `edge_contact`, each with `units` and `long_name`.
+        """
+        from ._dataset import normal_dataset
+
+        return normal_dataset(self, grid, material=material, indenter=indenter,
+                              units=units, attrs=attrs)
+
 
 @eqx.filter_jit
 def _solve(operator, h, compliance, poisson, target, load_control, solver):

@@ -258,6 +258,26 @@ class Stress(eqx.Module):
         s = self.principal
         return 0.5 * (s[..., 2] - s[..., 0])
 
+    def to_xarray(self, grid, *, units=None, attrs=None):
+        """This stress field as a labelled `xarray.Dataset`.
+
+        **Arguments:**
+
+        - `grid`: the `jc.Grid` of the tractions (for the `x`, `y` coordinates).
+        - `units`: unit labels, `None` / `"SI"` (m, Pa) or a dict (see
+          `jc.Solution.to_xarray`); nothing is converted.
+        - `attrs`: extra global attributes.
+
+        **Returns:** a Dataset with dimensions `depth` (when several depths were
+        asked for; else `depth` is a scalar coordinate), `x`, `y`; coordinates
+        `depth`, `x`, `y` [length]; variables `sxx`, `syy`, `szz`, `sxy`, `sxz`,
+        `syz`, `von_mises` and `max_shear` [stress, tension positive], each with
+        `units` and `long_name`.
+        """
+        from ._dataset import stress_dataset
+
+        return stress_dataset(self, grid, units=units, attrs=attrs)
+
 
 # ----------------------------------------------------------------------------------
 # Convolution

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 import jaxcontact as jc
-from jaxcontact._cli import main
+from jaxcontact._cli import SOLUTION_FIELDS, main
 
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -56,8 +56,17 @@ def _zener_toml(path):
 
 
 def _load(path):
-    data = np.load(path)
-    return {k: data[k] for k in data.files}, json.loads(str(data["metadata"]))
+    """(arrays, metadata) of a `run` result: `.nc` (the default) or `.npz`."""
+    path = Path(path)
+    if path.suffix == ".npz":
+        data = np.load(path)
+        return {k: data[k] for k in data.files}, json.loads(str(data["metadata"]))
+    ds = jc.load(path)
+    arrays = {name: ds[name].values for name in ds.data_vars}
+    arrays.update(x=ds["x"].values, y=ds["y"].values)
+    if "time" in ds.coords:
+        arrays["times"] = ds["time"].values
+    return arrays, json.loads(ds.attrs["metadata"])
 
 
 def test_presets_lists_every_preset(capsys):
@@ -73,7 +82,7 @@ def test_run_hertz_prints_the_comparison_and_writes_results(tmp_path, capsys):
     for row in ("contact radius a [m]", "peak pressure p0 [Pa]", "approach delta [m]"):
         assert row in out
     assert "float64" in out
-    arrays, meta = _load(tmp_path / "hertz.npz")
+    arrays, meta = _load(tmp_path / "hertz.nc")
     assert (tmp_path / "hertz.png").stat().st_size > 0
     assert meta["preset"] == "hertz" and meta["parameters"]["n"] == 16
     assert meta["units"] and meta["versions"]["jax"] == jax.__version__
@@ -89,13 +98,13 @@ def test_run_hertz_prints_the_comparison_and_writes_results(tmp_path, capsys):
 def test_run_hertz_float32(tmp_path, capsys):
     assert main(["run", "hertz", "--n", "16", "--float32", "--out", str(tmp_path)]) == 0
     assert "float32" in capsys.readouterr().out
-    arrays, meta = _load(tmp_path / "hertz.npz")
+    arrays, meta = _load(tmp_path / "hertz.nc")
     assert arrays["pressure"].dtype == np.float32 and meta["dtype"] == "float32"
     cell = (float(meta["size"]) / 16) ** 2
     np.testing.assert_allclose(arrays["pressure"].sum() * cell, 0.15, rtol=1e-4)
 
 
-def test_run_preset_writes_npz_metadata_and_plots(tmp_path, capsys):
+def test_run_preset_writes_netcdf_metadata_and_plots(tmp_path, capsys):
     argv = ["run", "zener", "--n", "24", "--steps", "7", "--out", str(tmp_path),
             "--progress", "--no-cache"]
     assert main(argv) == 0
@@ -106,7 +115,7 @@ def test_run_preset_writes_npz_metadata_and_plots(tmp_path, capsys):
     # Live progress on stderr as the steps complete: the first and the last step.
     assert "jaxcontact: step 1/7" in captured.err
     assert "jaxcontact: step 7/7" in captured.err
-    arrays, meta = _load(tmp_path / "zener.npz")
+    arrays, meta = _load(tmp_path / "zener.nc")
     assert meta["preset"] == "zener"
     assert meta["parameters"]["n"] == 24 and meta["parameters"]["steps"] == 7
     assert meta["parameters"]["ratio"] == 4.0
@@ -119,6 +128,28 @@ def test_run_preset_writes_npz_metadata_and_plots(tmp_path, capsys):
     np.testing.assert_allclose(arrays["normal_force"], 0.15, rtol=1e-7)
     for name in ("profiles", "history"):
         assert (tmp_path / f"zener_{name}.png").stat().st_size > 0
+    # The netCDF file opens with plain xarray: named dimensions, units, the scene.
+    import xarray as xr
+
+    with xr.open_dataset(tmp_path / "zener.nc") as ds:
+        assert ds["pressure"].dims == ("time", "x", "y")
+        assert ds["shear"].dims == ("time", "component", "x", "y")
+        assert ds["pressure"].attrs["units"] == "Pa" and ds["time"].attrs["units"] == "s"
+        assert json.loads(ds.attrs["scene"])["material"]["type"] == "Zener"
+        assert ds.attrs["name"] == "zener"
+    # --format npz: the same fields as plain arrays, equal to the netCDF file's.
+    npz_out = tmp_path / "npz"
+    assert main(argv[:-1] + [str(npz_out), "--format", "npz"]) == 0
+    assert not (npz_out / "zener.nc").exists()
+    plain, plain_meta = _load(npz_out / "zener.npz")
+    assert plain_meta["preset"] == "zener"
+    for name in SOLUTION_FIELDS + ("x", "y"):
+        np.testing.assert_array_equal(plain[name], arrays[name], err_msg=name)
+    # jc.load reads the npz as a Dataset with the same dimension names.
+    loaded = jc.load(npz_out / "zener.npz")
+    assert loaded["shear"].dims == ("time", "component", "x", "y")
+    np.testing.assert_array_equal(loaded["pressure"].values, arrays["pressure"])
+    assert json.loads(loaded.attrs["metadata"])["preset"] == "zener"
 
 
 def test_scene_file_equals_the_preset_it_describes(tmp_path, capsys):
@@ -126,11 +157,11 @@ def test_scene_file_equals_the_preset_it_describes(tmp_path, capsys):
     path = _zener_toml(tmp_path / "zener.toml")
     out = tmp_path / "out"
     assert main(["run", str(path), "--out", str(out)]) == 0
-    from_file, meta = _load(out / "zener_file.npz")
+    from_file, meta = _load(out / "zener_file.nc")
     assert meta["scene_file"] == str(path)
     assert meta["scene"]["material"]["type"] == "zener"
     assert main(["run", "zener", "--n", "24", "--steps", "7", "--out", str(out)]) == 0
-    preset, _ = _load(out / "zener.npz")
+    preset, _ = _load(out / "zener.nc")
     np.testing.assert_allclose(from_file["approach"], preset["approach"], rtol=1e-12)
     np.testing.assert_allclose(
         from_file["pressure"],
@@ -246,7 +277,7 @@ def test_module_exit_status_is_2_for_an_unknown_preset(tmp_path):
 def test_run_example_scene_file(tmp_path, capsys):
     argv = ["run", str(EXAMPLE), "--n", "24", "--steps", "9", "--out", str(tmp_path)]
     assert main(argv) == 0
-    arrays, meta = _load(tmp_path / "ramp_to_sliding.npz")
+    arrays, meta = _load(tmp_path / "ramp_to_sliding.nc")
     assert meta["scene_summary"]["coupling"] == "full"
     fx, w = arrays["tangential_force"][:, 0], arrays["normal_force"]
     np.testing.assert_allclose(w, 0.15, rtol=1e-7)
@@ -337,15 +368,15 @@ def test_existing_outputs_are_kept_unless_overwrite(tmp_path, capsys):
     scene_file = _tiny(tmp_path / "scene.toml")
     out = tmp_path / "out"
     out.mkdir()
-    (out / "tiny.npz").write_bytes(b"an earlier result")
+    (out / "tiny.nc").write_bytes(b"an earlier result")
     assert main(["run", str(scene_file), "--out", str(out)]) == 2
     captured = capsys.readouterr()
-    assert "already holds tiny.npz: pass --overwrite" in captured.err
+    assert "already holds tiny.nc: pass --overwrite" in captured.err
     assert "solving" not in captured.out
-    assert (out / "tiny.npz").read_bytes() == b"an earlier result"
+    assert (out / "tiny.nc").read_bytes() == b"an earlier result"
     # --overwrite replaces it with the new result (load balance 0.15 N to 1e-7).
     assert main(["run", str(scene_file), "--out", str(out), "--overwrite"]) == 0
-    arrays, meta = _load(out / "tiny.npz")
+    arrays, meta = _load(out / "tiny.nc")
     assert meta["scene"]["name"] == "tiny"
     np.testing.assert_allclose(arrays["normal_force"], [0.15], rtol=1e-7)
 
@@ -385,8 +416,8 @@ def test_scene_file_surface_from_a_height_file(tmp_path, capsys, monkeypatch):
     assert main(["run", str(path), "--out", str(tmp_path / "out")]) == 0
     sphere_file = _tiny(tmp_path / "tiny.toml")
     assert main(["run", str(sphere_file), "--out", str(tmp_path / "out")]) == 0
-    surf, meta = _load(tmp_path / "out" / "surf.npz")
-    tiny, _ = _load(tmp_path / "out" / "tiny.npz")
+    surf, meta = _load(tmp_path / "out" / "surf.nc")
+    tiny, _ = _load(tmp_path / "out" / "tiny.nc")
     assert meta["scene_summary"]["indenter"] == "Surface"
     np.testing.assert_allclose(surf["approach"], tiny["approach"], rtol=1e-10)
 
