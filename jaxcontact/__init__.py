@@ -29,7 +29,8 @@ from ._material.prony import Prony as Prony
 from ._material.zener import Zener as Zener
 from ._operator import HalfSpace as HalfSpace
 from ._scene import Scene as Scene
-from ._solution import RESULTS as RESULTS, Solution as Solution
+from ._results import RESULTS as RESULTS
+from ._solution import Solution as Solution
 from ._solve import solve as solve
 from ._sweep import sweep as sweep
 from ._solve_normal import NormalSolution as NormalSolution, solve_normal as solve_normal

@@ -305,7 +305,7 @@ def _component_coord() -> dict:
 
 
 def _result_attrs() -> dict:
-    from ._solution import RESULTS
+    from ._results import RESULTS
 
     items = RESULTS._name_to_item  # name -> item; item._value the integer code
     return {

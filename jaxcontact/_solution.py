@@ -2,32 +2,9 @@
 
 import equinox as eqx
 import jax.numpy as jnp
-import lineax as lx
 from jaxtyping import Array, Bool, Float, Int
 
-
-class RESULTS(lx.RESULTS):  # pyright: ignore[reportGeneralTypeIssues]
-    """How a contact step ended: `successful`, or one member per way of failing (or
-    of not meeting a target), each message saying what to change. Extends
-    `lineax.RESULTS` (`successful`, `max_steps_reached`, ...)."""
-
-    stalled = (
-        "The contact iteration stopped making progress (its residual did not halve "
-        "for many iterations) and every fallback failed too. Try a tighter `rtol` on "
-        "a finer time discretisation (smaller load increments), or "
-        "`solver=jc.Rounds()`."
-    )
-    tangential_load_above_friction_limit = (
-        "A tangential load at or above the friction limit mu W: there is no static "
-        "solution; the indenter slides and the shear is mu p along the load (the "
-        "solution returned, with `sliding`), so the tangential force is mu W, not the "
-        "load asked for. Prescribe a tangential displacement to follow gross sliding."
-    )
-    adjoint_not_converged = (
-        "The adjoint (implicit gradient) linear solve did not converge. Try "
-        "`adjoint=jc.ImplicitAdjoint(max_steps=...)` with more steps, or a looser "
-        "`rtol`."
-    )
+from ._results import RESULTS as RESULTS
 
 
 class Solution(eqx.Module):
@@ -48,6 +25,7 @@ class Solution(eqx.Module):
     - `sliding`: `(nt,)` gross sliding (contact but no stick cell). Under strong
       coupling a load below `mu W` can leave no stick cell too (the shear directions
       fan out; e.g. nu = 0.1, F = 0.99 mu W in one step): it is flagged the same way.
+      Never with friction 0 (concrete or traced).
     - `converged`, `iterations`, `rounds`, `residual`: `(nt,)` per-step solver status
       (inner CG iterations summed over the normal/tangential rounds).
     - `result`: `(nt,)` `jc.RESULTS`, how each step ended (`successful`, or why not);

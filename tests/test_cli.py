@@ -105,8 +105,8 @@ def test_run_hertz_float32(tmp_path, capsys):
 
 
 def test_run_preset_writes_netcdf_metadata_and_plots(tmp_path, capsys):
-    argv = ["run", "zener", "--n", "24", "--steps", "7", "--out", str(tmp_path),
-            "--progress", "--no-cache"]
+    argv = ["run", "zener", "--n", "24", "--steps", "7", "--progress", "--no-cache",
+            "--out", str(tmp_path)]
     assert main(argv) == 0
     captured = capsys.readouterr()
     out = captured.out

@@ -55,6 +55,25 @@ def test_viscoelastic_normal_indentation_gradient():
     _check_against_fd(loss, jnp.array([G / 4, 0.01, NU, W, R]))
 
 
+def test_gradient_after_unloading_to_zero():
+    """Load control back to W = 0 (no contact at the last step): the approach is where
+    the indenter touches the recovering surface, which depends on the material
+    (central differences: about -7e-11 m per Pa of mu_0); its gradient was exactly 0
+    (the adjoint held the approach fixed without contact)."""
+    grid = jc.Grid((20, 20), 4 * A0)
+    program = W * jnp.array([0.0, 0.5, 1.0, 1.0, 1.0, 0.6, 0.3, 0.1, 0.0])
+    times = jnp.linspace(0.0, 0.04, program.shape[0])
+
+    def last_approach(x, rtol=None):
+        mu_0, tau = x
+        material = jc.Zener(mu_inf=G, mu_0=mu_0, tau=tau, poisson=NU)
+        scene = jc.Scene(grid, jc.Sphere(R), material, times, jc.Force(program))
+        return 1e6 * jc.solve(scene, rtol=rtol).approach[-1]
+
+    grad = _check_against_fd(last_approach, jnp.array([G / 4, 0.01]))
+    assert abs(float(grad[0])) > 0
+
+
 def test_relaxation_prony_gradient_displacement_control():
     """Force under a held indentation (Prony relaxation series) w.r.t. every Prony
     parameter: what `fit_prony` needs."""

@@ -180,3 +180,24 @@ def test_solvers_reject_steps_they_cannot_solve():
                          y=jc.Displacement(0.0), friction=MU, coupling="full")
     with pytest.raises(ValueError, match="LoadByDisplacement cannot solve"):
         jc.solve(displaced, solver=jc.LoadByDisplacement(jc.JointPCG()))
+
+
+def test_no_sliding_flag_without_friction_concrete_or_traced():
+    """`Solution.sliding` with friction 0: False whether the zero is a number (no
+    tangential step is solved) or traced under `vmap` (the step is solved with a zero
+    bound: every cell 'slips', but nothing slides without friction); a traced 0.3 in
+    the same batch is in partial slip (not sliding either)."""
+    grid = jc.Grid((16, 16), 3e-3)
+    times = jnp.linspace(0.0, 1.0, 3)
+
+    def scene(mu):
+        return jc.Scene(grid, jc.Sphere(R), jc.Elastic(G, NU), times, jc.Force(W),
+                        x=jc.Displacement(jnp.linspace(0.0, 2e-6, 3)), friction=mu)
+
+    concrete = jc.solve(scene(0.0))
+    batched = jax.vmap(lambda mu: jc.solve(scene(mu), throw=False))(jnp.array([0.0, MU]))
+    assert not np.any(np.asarray(concrete.sliding))
+    assert not np.any(np.asarray(batched.sliding))
+    assert np.all(np.asarray(batched.converged))
+    # The frictionless member carries no shear, as the concrete zero.
+    assert float(jnp.abs(batched.shear[0]).max()) == 0.0

@@ -123,7 +123,11 @@ def _residual(operator, config, frozen, x, theta):
     gap = h + history[2] + uz - dz * kz
     f_p = jnp.where(contact, gap / kz, p)
     if config.normal_force_control:
-        f_dz = jnp.where(any_contact, (area * jnp.sum(p) - w_target) / scale, dz - fixed[0])
+        # No contact (the load back at zero): the indenter touches the surface, whose
+        # recovery the history carries, at its highest point (the forward's
+        # `gap_residual`): the approach depends on the material through `history`.
+        touching = jnp.min(h + history[2] + uz) / kz
+        f_dz = jnp.where(any_contact, (area * jnp.sum(p) - w_target) / scale, dz - touching)
     else:
         f_dz = dz - w_target / kz
     if config.nd == 0:
