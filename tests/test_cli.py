@@ -474,8 +474,8 @@ def test_float32_run_checks_the_scene_in_float32(tmp_path, capsys):
 def test_second_run_loads_the_compiled_program_from_the_cache(tmp_path):
     """`jaxcontact run` writes its compiled solve to the persistent cache, and a second
     process solving the same scene loads it instead of compiling (JAX's own log says
-    which); `--no-cache` uses none. A coupled scene: its program takes seconds to
-    compile, above the cache's 1 s threshold."""
+    which). A coupled scene: its program takes seconds to compile, above the cache's
+    1 s threshold."""
     env = dict(os.environ, PYTHONPATH=str(ROOT), JAX_LOGGING_LEVEL="DEBUG",
                JAXCONTACT_CACHE_DIR=str(tmp_path / "cache"))
     env.pop("JAXCONTACT_NO_CACHE", None)
@@ -493,6 +493,25 @@ def test_second_run_loads_the_compiled_program_from_the_cache(tmp_path):
     second = run()
     assert "Persistent compilation cache hit for 'jit__solve'" in second
     assert "MISS for 'jit__solve'" not in second
-    third = run("--no-cache")
-    assert "cache hit for 'jit__solve'" not in third
-    assert "Writing jit__solve" not in third
+
+
+def test_no_cache_flag_and_environment_leave_the_cache_off(monkeypatch):
+    """`--no-cache` (and `JAXCONTACT_NO_CACHE=1`) set no cache folder; without them
+    `_setup_jax` points JAX at `JAXCONTACT_CACHE_DIR` (checked in-process on the
+    parsed flag; the two-process test above shows the cache in use)."""
+    from jaxcontact import _cli
+    from jaxcontact._cache import cache_disabled_by_environment, default_cache_dir
+
+    seen = []
+    monkeypatch.setattr(jax.config, "update", lambda name, value: seen.append(name))
+    monkeypatch.setenv("JAXCONTACT_CACHE_DIR", "/tmp/jaxcontact-cache-test")
+    args = _cli._parser().parse_args(["run", "zener", "--no-cache"])
+    _cli._setup_jax(False, cache=not args.no_cache)
+    assert "jax_compilation_cache_dir" not in seen
+    monkeypatch.setenv("JAXCONTACT_NO_CACHE", "1")
+    assert cache_disabled_by_environment()
+    _cli._setup_jax(False, cache=True)
+    assert "jax_compilation_cache_dir" not in seen
+    monkeypatch.setenv("JAXCONTACT_NO_CACHE", "0")
+    assert not cache_disabled_by_environment()
+    assert str(default_cache_dir()) == "/tmp/jaxcontact-cache-test"
