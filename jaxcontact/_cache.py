@@ -29,7 +29,8 @@ def cache_disabled_by_environment() -> bool:
                                                                                "false")
 
 
-def enable_compilation_cache(directory=None, *, min_compile_seconds: float = 1.0) -> Path:
+def enable_compilation_cache(directory=None, *, min_compile_seconds: float = 1.0,
+                             max_bytes: int = 2 * 1024**3) -> Path:
     """Turn on JAX's persistent compilation cache for this process.
 
     **Arguments:**
@@ -38,6 +39,11 @@ def enable_compilation_cache(directory=None, *, min_compile_seconds: float = 1.0
       `default_cache_dir()`.
     - `min_compile_seconds`: only programs that took at least this long to compile
       are written [s] (the small helper programs are not worth a file).
+    - `max_bytes`: the folder's size bound [bytes]; the least recently used entries
+      are evicted beyond it. A bound also makes JAX lock the folder (with `filelock`)
+      around every read and write: without the lock, a process reading an entry
+      another one is still writing crashed (seen in two test processes sharing
+      `~/.cache/jaxcontact/xla`).
 
     **Returns:** the cache folder. Entries are keyed by the program, the jax/jaxlib
     versions and the machine; stale ones are never read, and the folder may be deleted
@@ -47,12 +53,15 @@ def enable_compilation_cache(directory=None, *, min_compile_seconds: float = 1.0
 
     if min_compile_seconds < 0:
         raise ValueError(f"min_compile_seconds must be >= 0, got {min_compile_seconds!r}")
+    if isinstance(max_bytes, bool) or not isinstance(max_bytes, int) or max_bytes <= 0:
+        raise ValueError(f"max_bytes must be a positive integer, got {max_bytes!r}")
     path = Path(directory).expanduser() if directory is not None else default_cache_dir()
     path.mkdir(parents=True, exist_ok=True)
     jax.config.update("jax_compilation_cache_dir", str(path))
     jax.config.update("jax_persistent_cache_min_compile_time_secs",
                       float(min_compile_seconds))
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+    jax.config.update("jax_compilation_cache_max_size", int(max_bytes))
     return path
 
 

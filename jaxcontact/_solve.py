@@ -363,9 +363,14 @@ def solve(
             )
     nd = scene.tangential_directions
     _, force_control = tangential_targets(scene, nd)
+    # An incompressible body (nu = 0.5 exactly, concrete) has no normal-tangential
+    # coupling (the blocks scale with 1 - 2 nu): solved as uncoupled, where one round
+    # is exact (the joint iteration ran to its step bound on such steps).
+    poisson = scene.material.poisson
+    incompressible = not _validate.is_traced(poisson) and float(poisson) == 0.5
     controls = _Controls(
         nd=nd,
-        coupled=nd > 0 and scene.coupling != "none",
+        coupled=nd > 0 and scene.coupling != "none" and not incompressible,
         normal_force_control=isinstance(scene.normal, Force),
         tangential_force_control=tuple(bool(f) for f in force_control),
     )

@@ -201,3 +201,26 @@ def test_no_sliding_flag_without_friction_concrete_or_traced():
     assert np.all(np.asarray(batched.converged))
     # The frictionless member carries no shear, as the concrete zero.
     assert float(jnp.abs(batched.shear[0]).max()) == 0.0
+
+
+@pytest.mark.parametrize("coupling", ["x", "full"])
+def test_incompressible_coupled_scene_solves_as_uncoupled(coupling):
+    """nu = 0.5: the normal-tangential blocks vanish (they scale with 1 - 2 nu), so a
+    "x" or "full" scene is the uncoupled one ("full" also solves q_y, its total load
+    zero: the reference is "none" with `y=jc.Force(0.0)`): the same pressure and shear
+    (to 1e-9 of the peak) with the same work."""
+    grid = jc.Grid((24, 24), 2e-3)
+    times = jnp.linspace(0.0, 1.0, 4)
+
+    def solve(c, **y):
+        return jc.solve(jc.Scene(grid, jc.Sphere(R), jc.Elastic(G, 0.5), times,
+                                 jc.Force(W), x=jc.Displacement(jnp.linspace(0, 4e-6, 4)),
+                                 friction=MU, coupling=c, **y))
+
+    sol = solve(coupling)
+    ref = solve("none", **({"y": jc.Force(0.0)} if coupling == "full" else {}))
+    p_max = float(ref.pressure.max())
+    np.testing.assert_allclose(sol.pressure, ref.pressure, rtol=0, atol=1e-9 * p_max)
+    np.testing.assert_allclose(sol.shear, ref.shear, rtol=0, atol=1e-9 * p_max)
+    # The work of the uncoupled solve (the joint solver's one step took 2000 before).
+    assert int(np.sum(sol.iterations)) <= 1.1 * int(np.sum(ref.iterations))
