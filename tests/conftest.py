@@ -14,3 +14,28 @@ import jax  # noqa: E402
 # Validation runs in float64 (float32 tests convert explicitly).
 jax.config.update("jax_enable_x64", True)
 jax.config.update("jax_numpy_rank_promotion", "raise")
+
+
+import gc  # noqa: E402
+
+import pytest  # noqa: E402
+
+
+def _memory_maps() -> int:
+    try:
+        with open("/proc/self/maps") as maps:
+            return sum(1 for _ in maps)
+    except OSError:  # not Linux
+        return 0
+
+
+@pytest.fixture(autouse=True)
+def _release_compiled_programs():
+    """Free the compiled programs of a test process when its memory maps near the
+    kernel's limit (`vm.max_map_count`, 65530 by default): each coupled program holds
+    ~1500 maps (measured, 16^2-22^2 `lc` scenes), and a worker that compiled ~40 of them
+    crashed inside XLA's compiler (segfault / abort in `backend_compile_and_load`)."""
+    yield
+    if _memory_maps() > 30000:
+        jax.clear_caches()
+        gc.collect()
