@@ -205,14 +205,24 @@ class Rounds(AbstractStepSolver):
                 stick=(p > 0) & (problem.friction > 0), sliding=jnp.array(False),
                 iterations=state.iterations, rounds=state.rounds,
                 residual=normal.residual, converged=normal.converged)
-        converged = state.ok & state.done if problem.coupled else state.ok
+        residual = jnp.maximum(normal.residual, tang.residual)
+        approach = normal.approach
+        if problem.coupled:
+            # The normal conditions at the returned (p, q): the last normal solve saw
+            # the shear before the last tangential solve (the same when `done`).
+            setup = k.normal_setup.with_gap(k.h + k.uz_from_shear(state.shear))
+            _, approach, normal_residual = setup.evaluate(normal.displacement, p)
+            residual = jnp.maximum(normal_residual, tang.residual)
+            converged = state.ok & (residual <= k.rtol)
+        else:
+            converged = state.ok
         contact = p > 0
         stick = tang.stick
         sliding = jnp.any(contact) & ~jnp.any(stick)
         result = step_outcome(problem, p, converged, k.rtol)
         return make_result(
-            pressure=p, shear=state.shear, approach=normal.approach,
+            pressure=p, shear=state.shear, approach=approach,
             delta_t=tang.delta, slip=tang.slip + problem.previous_slip, stick=stick,
             sliding=sliding, iterations=state.iterations, rounds=state.rounds,
-            residual=jnp.maximum(normal.residual, tang.residual), converged=converged,
+            residual=residual, converged=converged,
             result=result)

@@ -78,9 +78,12 @@ class TangentialOperator:
         self.skip = skip  # stop at the first iterate (a batch member with no solution)
         self.contact = bound > 0
         self.bound_total = cell_area * jnp.sum(bound)  # mu W
+        # A cell projected onto its disc must not count as stick by round-off (as in
+        # `JointPCG.stick_tol`): 1 - 1e-10 is 1 in float32.
+        self.stick_tol = max(1e-10, 64 * float(jnp.finfo(self.dtype).eps))
 
     def stick_of(self, q):
-        return self.contact & (_norm(q) < self.bound * (1 - 1e-10))
+        return self.contact & (_norm(q) < self.bound * (1 - self.stick_tol))
 
     def fix_load(self, q):
         """Shift the stick cells (or, if none, all contact cells) to carry the load."""
