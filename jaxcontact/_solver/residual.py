@@ -29,8 +29,8 @@ from .tangential import slip_multiplier
 def masked_mean(values, mask):
     """Mean of `values` `(..., nx, ny)` over the `mask` cells `(nx, ny)` (0 where none),
     summed as deviations from the largest masked value: a plain float32 sum of a few
-    hundred values drifts by ~20 eps of their size, which floored the gap residual at
-    ~3e-6 (the deviations at a converged contact are tiny, and so is their sum's error)."""
+    hundred values drifts by tens of eps of their size, while the deviations at a
+    converged contact are tiny, and so is their sum's error (notes/round_off.md)."""
     count = jnp.sum(mask)
     ref = jnp.max(jnp.where(mask, values, -jnp.inf), axis=(-2, -1))
     ref = jnp.where(count > 0, ref, 0.0)
