@@ -806,8 +806,8 @@ def test_joint_solves_incompressible_coupled_steps(coupling):
 
     @jax.jit
     def joint(nu):
-        return jc.solve(scene(nu, coupling), solver=jc.JointPCG(rtol=RTOL, max_steps=300),
-                        throw=False)
+        solver = jc.JointPCG(rtol=RTOL, max_steps=300)
+        return jc.solve(scene(nu, coupling), solver=solver, throw=False)
 
     sol = joint(jnp.asarray(0.5))
     ref = jc.solve(scene(0.5, "none"), rtol=RTOL)
