@@ -787,13 +787,15 @@ def test_joint_certifies_a_step_whose_warm_start_has_no_tangential_scale():
     assert dp.max() <= same(m) and dq.max() <= same(m), (dp, dq)
 
 
-@pytest.mark.parametrize("coupling", ["x", "full"])
+@pytest.mark.parametrize("coupling", [
+    pytest.param("x", marks=pytest.mark.slow), "full"])
 def test_joint_solves_incompressible_coupled_steps(coupling):
     """nu = 0.5 traced (so `jc.solve` keeps the coupled solver): the coupling blocks
     vanish, and the first step with a tangential displacement starts from `q = 0`
     with `b = 0`: a zero tangential scale, the residual infinite at every iterate,
     and the step ran to its iteration bound. Now every step converges with the joint
-    solver alone within 30 iterations, to `same(n)` of the uncoupled answer."""
+    solver alone within 30 iterations, to `same(n)` of the uncoupled answer ("x" is
+    the same mechanism with its own programs: slow)."""
     n = 24
     grid = jc.Grid((n, n), 2e-3)
     times = jnp.linspace(0.0, 1.0, 4)
