@@ -749,3 +749,72 @@ def test_held_transposed_spectra_give_the_same_step():
     assert bool(a.converged) and int(a.iterations) > 5
     for field in ("pressure", "shear", "iterations", "approach", "delta_t"):
         np.testing.assert_array_equal(getattr(a, field), getattr(b, field))
+
+
+def _spence_scene(steps):
+    """Spence's problem as `benchmarks/contact_peer.py` builds it at 15 cells per
+    radius (G = 0.5, nu = 0.3, mu = 0.2, R = 100, Hertz a = 1, F_k = F (k/30)^3, full
+    coupling, incremental slip; 39^2 cells of a / 15 centred on the sphere), its first
+    `steps` load stages: the first touches one cell, the second five."""
+    g, nu, radius, cells = 0.5, 0.3, 100.0, 15
+    m = 2 * round(1.25 * cells) + 1
+    force = 8 * g / (3 * radius * (1 - nu))  # Hertz a = 1 (E* = 2 G / (1 - nu))
+    loads = force * (np.arange(1, steps + 1) / 30) ** 3
+    return jc.Scene(jc.Grid((m, m), m / cells), jc.Sphere(radius), jc.Elastic(g, nu),
+                    times=jnp.arange(float(steps)), normal=jc.Force(jnp.asarray(loads)),
+                    friction=0.2, coupling="full", slip="incremental")
+
+
+def test_joint_certifies_a_step_whose_warm_start_has_no_tangential_scale():
+    """The tangential residual is relative to the scale `||C K_tt q|| + ||b + C K_tz
+    p||_contact` of the last certified iterate; Spence's second stage starts from the
+    first's one contact cell with `q = 0`, whose own coupling displacement is zero, so
+    that scale is round-off (4e-22 against 9e-6 at the solution): the step, converged
+    in absolute terms after ~5 iterations, was never certified (stalled after 150
+    iterations). Now the certification opens on a scale of at least `||b +
+    u_t||_contact`: every stage converges with the joint solver alone, each within 20
+    iterations, to `same(n)` of the rounds' answer (p to max p, q to mu max p)."""
+    scene = _spence_scene(4)
+    m = scene.grid.shape[0]
+    sol = jc.solve(scene, solver=jc.JointPCG(rtol=RTOL), throw=False)
+    ref = jc.solve(scene, solver=jc.Rounds(rtol=RTOL))
+    assert np.asarray(sol.contact[:2]).sum(axis=(1, 2)).tolist() == [1, 5]
+    assert np.all(np.asarray(sol.converged)), (sol.iterations, sol.residual)
+    assert int(np.max(sol.iterations)) <= 20, sol.iterations
+    p_max = np.asarray(ref.pressure).max(axis=(1, 2))
+    dp = np.abs(np.asarray(sol.pressure - ref.pressure)).max(axis=(1, 2)) / p_max
+    dq = np.abs(np.asarray(sol.shear - ref.shear)).max(axis=(1, 2, 3)) / (0.2 * p_max)
+    assert dp.max() <= same(m) and dq.max() <= same(m), (dp, dq)
+
+
+@pytest.mark.parametrize("coupling", [
+    pytest.param("x", marks=pytest.mark.slow), "full"])
+def test_joint_solves_incompressible_coupled_steps(coupling):
+    """nu = 0.5 traced (so `jc.solve` keeps the coupled solver): the coupling blocks
+    vanish, and the first step with a tangential displacement starts from `q = 0`
+    with `b = 0`: a zero tangential scale, the residual infinite at every iterate,
+    and the step ran to its iteration bound. Now every step converges with the joint
+    solver alone within 30 iterations, to `same(n)` of the uncoupled answer ("x" is
+    the same mechanism with its own programs: slow)."""
+    n = 24
+    grid = jc.Grid((n, n), 2e-3)
+    times = jnp.linspace(0.0, 1.0, 4)
+    y = {"y": jc.Force(0.0)} if coupling == "full" else {}
+
+    def scene(nu, c):
+        return jc.Scene(grid, jc.Sphere(R), jc.Elastic(G, nu), times, jc.Force(W),
+                        x=jc.Displacement(jnp.linspace(0, 4e-6, 4)), friction=MU,
+                        coupling=c, **y)
+
+    @jax.jit
+    def joint(nu):
+        solver = jc.JointPCG(rtol=RTOL, max_steps=300)
+        return jc.solve(scene(nu, coupling), solver=solver, throw=False)
+
+    sol = joint(jnp.asarray(0.5))
+    ref = jc.solve(scene(0.5, "none"), rtol=RTOL)
+    assert np.all(np.asarray(sol.converged)), (sol.iterations, sol.residual)
+    assert int(np.max(sol.iterations)) <= 30, sol.iterations
+    p_max = float(ref.pressure.max())
+    assert float(jnp.abs(sol.pressure - ref.pressure).max()) <= same(n) * p_max
+    assert float(jnp.abs(sol.shear - ref.shear).max()) <= same(n) * MU * p_max

@@ -140,6 +140,7 @@ class _Evaluation(eqx.Module):
     stick: Bool[Array, "nx ny"]
     res_t: Float[Array, ""]
     residual: Float[Array, ""]
+    gate: Float[Array, ""]  # `residual`, the shear scale at least `||b + u_t||_contact`
     inv_norm: Float[Array, "nx ny"]  # 1 / |q|
 
 
@@ -301,7 +302,15 @@ class _JointOperator:
 
     def evaluate(self, x, u, scales, bound, sliding) -> _Evaluation:
         """Both residuals at `(p, q)` with displacements `u`, the tangential one for
-        the friction bound `bound`."""
+        the friction bound `bound`, relative to the `scales` of the last certification.
+
+        `gate`, the residual that decides whether to certify, takes as tangential
+        scale at least `||b + u_t||` over the contact, which the exact scale of this
+        iterate, `||C K_tt q|| + ||b + C K_tz p||_contact`, cannot be below (triangle
+        inequality): the frozen scale is that of an earlier iterate, and a warm start
+        without shear whose coupling displacement vanishes on the contact (a contact
+        of one cell, whose own `K_tz` is zero; `nu = 0.5`) has a zero scale, against
+        which no residual of the step could reach `rtol`."""
         fc, area = self.fc, self.area
         tangential_target = self.tangential_target
         p, q = x[0], x[1:]
@@ -316,11 +325,18 @@ class _JointOperator:
         ds = w - dt[:, None, None]
         ds_mag = jnp.sqrt(_dot(ds, ds))
         slip_violation = ds + (ds_mag * inv)[None] * q
-        res_t = coulomb_residual(ds, slip_violation, stick, contact_t, scales[1],
-                                 area * _sum2(q), tangential_target, fc,
-                                 area * jnp.sum(bound), sliding)
+
+        def tangential(scale):
+            return coulomb_residual(ds, slip_violation, stick, contact_t, scale,
+                                    area * _sum2(q), tangential_target, fc,
+                                    area * jnp.sum(bound), sliding)
+
+        res_t = tangential(scales[1])
+        w_contact = jnp.sqrt(jnp.sum(jnp.where(contact_t[None], w, 0) ** 2))
+        gate = jnp.maximum(res_n, tangential(jnp.maximum(scales[1], w_contact)))
         return _Evaluation(g=g, dz=dz, res_n=res_n, ds=ds, dt=dt, stick=stick,
-                           res_t=res_t, residual=jnp.maximum(res_n, res_t), inv_norm=inv)
+                           res_t=res_t, residual=jnp.maximum(res_n, res_t), gate=gate,
+                           inv_norm=inv)
 
     # ---- loads and projections -------------------------------------------------------
     def rescale(self, p):
@@ -706,7 +722,7 @@ class JointPCG(AbstractStepSolver):
         res_ref = jnp.where(upd, ev_new.residual, s.res_ref)
         # A bound-updated iterate within the tolerance: certified with exact
         # displacements and residual scales.
-        final = upd & (ev_new.residual <= k.rtol)
+        final = upd & (ev_new.gate <= k.rtol)
 
         def certify():
             ue, sce = k.exact(x_new)
@@ -715,7 +731,7 @@ class JointPCG(AbstractStepSolver):
         u_new, scales_new, ev_new = jax.lax.cond(
             final, certify, lambda: (u_new, scales_new, ev_new))
         want = (ev_new.residual <= self.sigma * res_ref) | (
-            ev_new.residual <= k.rtol) | self._exhausted(it, since) | (it <= early) | (
+            ev_new.gate <= k.rtol) | self._exhausted(it, since) | (it <= early) | (
             (since >= self.update_when_stuck) & ~upd & ~s.certified)
         applications = applications + 1.5 * final
         return _JointState(
