@@ -3,6 +3,7 @@
     jaxcontact fit FILE... --radius R [--arms N|auto] [--out DIR] [--n N]
                    [--poisson NU] [--baseline constant|linear] [--samples A,H,R]
                    [--segments approach,hold,retract] [--steps K]
+                   [--contact viscoelastic|piecewise]
                    [--tau-range LO,HI] [--no-check-grid]
 
 Each file is read by `jc.read_afm` (afmformats: `pip install "jaxcontact[afm]"`), its
@@ -68,6 +69,11 @@ def add_parser(sub):
                    help="Poisson's ratio, fixed (default 0.5: incompressible)")
     p.add_argument("--baseline", default="constant", choices=("constant", "linear"),
                    help="baseline of the contact point fit")
+    p.add_argument("--contact", default="viscoelastic",
+                   choices=("viscoelastic", "piecewise"),
+                   help="contact point: the piecewise baseline + Hertz fit refined by "
+                        "the closed-form viscoelastic model (default), or the "
+                        "piecewise fit alone (jc.read_afm's contact=)")
     p.add_argument("--check-grid", action=argparse.BooleanOptionalAction, default=True,
                    help="also solve the fitted model on a grid twice as fine and report "
                         "the difference (the model's discretisation error; default on)")
@@ -163,7 +169,8 @@ def _fit_one(path, args, samples, segments):
     import jaxcontact as jc
 
     try:
-        curve = jc.read_afm(path, baseline=args.baseline, segments=segments)
+        curve = jc.read_afm(path, baseline=args.baseline, segments=segments,
+                            contact=args.contact)
     except (ValueError, TypeError) as exc:
         raise _BadInput(f"{path}: {exc}") from exc
     names = ("approach", "hold", "retract")
@@ -207,6 +214,13 @@ def _fit_one(path, args, samples, segments):
     chi = float(np.sqrt(np.mean((fit.residual / sigma) ** 2)))
     chi_hold = float(np.sqrt(np.mean((fit.residual[hold] / sigma[hold]) ** 2))) if (
         hold.any()) else None
+    # The issue's measure: the model on the RAW samples of the hold against their
+    # white noise (bin means weigh the first instants of the hold, where log-spaced
+    # bins hold a sample or two, as much as its last seconds).
+    _, raw_res, raw_seg = raw_residual(fit, curve, template)
+    raw_hold = raw_seg == 1
+    chi_raw = float(np.sqrt(np.mean(raw_res[raw_hold] ** 2)) / curve.noise(fit.kind)) if (
+        raw_hold.any()) else None
     result = {
         "file": str(path),
         "mode": curve.mode,
@@ -236,6 +250,11 @@ def _fit_one(path, args, samples, segments):
         "noise_raw": curve.noise(fit.kind),
         "residual_over_noise": chi,
         "residual_over_noise_hold": chi_hold,
+        "hold_residual_over_noise_raw": chi_raw,
+        "hold_residual_note": ("RMS of the fitted model against the raw samples of the "
+                               "hold (at most 600, evenly thinned) over the raw curve's "
+                               "white noise (successive differences)"),
+        "contact": args.contact,
         "converged": bool(fit.converged),
         "message": fit.message,
         "information_criteria": {str(k): {"aic": v[1], "bic": v[2], "loss": v[0].loss,
@@ -247,6 +266,36 @@ def _fit_one(path, args, samples, segments):
         "units": {"time": "s", "force": "N", "depth": "m", "modulus": "Pa (shear)"},
     }
     return result, fit, seg
+
+
+def raw_residual(fit, curve, template, *, max_samples=600):
+    """`(time, residual, segment)` of the fitted model against the RAW samples of an
+    `AFMCurve` (each segment thinned evenly to at most `max_samples`): one forward
+    solve of `fit.material` on the fit's grid, driven by the
+    raw force (creep) or depth (relaxation), from an unloaded start at `t = 0` as in
+    the fit. `residual` = model - data [N or m]."""
+    import jax.numpy as jnp
+    import numpy as np
+
+    import jaxcontact as jc
+
+    keep = np.zeros(curve.time.shape, bool)
+    for code in (0, 1, 2):
+        idx = np.flatnonzero(curve.segment == code)
+        keep[idx[:: max(1, -(-idx.size // max_samples))]] = True
+    t, f, d, s = (x[keep].copy() for x in (curve.time, curve.force, curve.depth,
+                                            curve.segment))
+    if t[0] <= 0:  # the contact sample: the model starts unloaded there
+        f[0], d[0] = 0.0, 0.0
+    else:
+        t, f, d, s = np.r_[0.0, t], np.r_[0.0, f], np.r_[0.0, d], np.r_[0, s]
+    normal = jc.Force(jnp.asarray(f)) if fit.kind == "depth" else jc.Displacement(
+        jnp.asarray(d))
+    scene = jc.Scene(template.grid, template.indenter, fit.material, jnp.asarray(t),
+                     normal)
+    sol = jc.solve(scene, scheme="linear", throw=False)
+    model = np.asarray(sol.approach if fit.kind == "depth" else sol.normal_force)
+    return t, model - (d if fit.kind == "depth" else f), s
 
 
 def _plot(fit, seg, result, path):
@@ -339,6 +388,9 @@ def _print(r, json_path):
           f"noise of the binned data" + (f" (hold: {hold:.2f})" if hold is not None
                                          else "")
           + f" (raw noise {r['noise_raw']:.3g}); converged: {r['converged']}")
+    if r["hold_residual_over_noise_raw"] is not None:
+        print(f"  hold, raw samples: residual RMS = "
+              f"{r['hold_residual_over_noise_raw']:.2f} x the white noise")
     if r["discretisation_rms"] is not None:
         print(f"  discretisation (grid x2): {r['discretisation_rms']:.3g} RMS "
               f"({r['discretisation_rms'] / r['residual_rms']:.2f} x the residual)")

@@ -241,12 +241,140 @@ def _lm_solve(theta, args, rtol, atol, max_steps):
     The Jacobian comes from reverse mode (`jac="bwd"`: `jax.jacrev`, one adjoint per
     sample, batched): the contact solve has a custom VJP and no forward mode.
     Compiled once per problem shape; `throw=False`: a failure is a result code."""
+    return _lm_solve_unjitted(theta, args, rtol, atol, max_steps)
+
+
+def _lm_solve_unjitted(theta, args, rtol, atol, max_steps):
     import optimistix as optx
 
     sol = optx.least_squares(_residual, optx.LevenbergMarquardt(rtol=rtol, atol=atol),
                              theta, args, options={"jac": "bwd"}, max_steps=max_steps,
                              throw=False)
     return sol.value, sol.result == optx.RESULTS.successful, sol.stats["num_steps"]
+
+
+@eqx.filter_jit
+def _lm_solve_batch(theta, args, axes, rtol, atol, max_steps):
+    """`_lm_solve` over a batch of curves: `jax.vmap` of the whole Levenberg-Marquardt
+    solve (one compiled program; the loop runs until its slowest member, the others
+    held at their end point). `theta`: every leaf with a leading batch axis; `args`:
+    `_residual`'s arguments, the leaves whose `axes` entry is 0 batched."""
+    return eqx.filter_vmap(
+        lambda th, a: _lm_solve_unjitted(th, a, rtol, atol, max_steps),
+        in_axes=(0, axes))(theta, args)
+
+
+class _Captured(Exception):
+    """`fit_prony(_lm={"capture": ...})` stops here with the set-up done."""
+
+
+def _stack(trees):
+    """`(stacked, axes)`: the pytrees `trees` (one structure) as one pytree whose
+    array leaves that differ between the trees carry a leading batch axis (`axes`
+    leaf 0); leaves equal in every tree are kept once (`axes` leaf `None`).
+    Non-array leaves must be equal."""
+    leaves = [jax.tree.flatten(t) for t in trees]
+    treedef = leaves[0][1]
+    if any(td != treedef for _, td in leaves):
+        raise ValueError("fit_prony_batch: the curves' problems differ in structure "
+                         "(every curve needs the same number of samples and the same "
+                         "control mode, fixed parameters and bounds)")
+    out, axes = [], []
+    for column in zip(*(lv for lv, _ in leaves), strict=True):
+        first = column[0]
+        if isinstance(first, (jax.Array, np.ndarray)):
+            if all(np.shape(x) == np.shape(first) and bool(np.array_equal(
+                    np.asarray(x), np.asarray(first))) for x in column[1:]):
+                out.append(first)
+                axes.append(None)
+            else:
+                out.append(jnp.stack([jnp.asarray(x) for x in column]))
+                axes.append(0)
+        else:
+            out.append(first)
+            axes.append(None)
+    return jax.tree.unflatten(treedef, out), jax.tree.unflatten(treedef, axes)
+
+
+def fit_prony_batch(data, scene_template: Scene, n_terms: int = 2, *, weights=None,
+                    lm_steps: int = 100, **options) -> list:
+    """Fit a Prony series to each of many curves of one shape at once: the
+    Levenberg-Marquardt solves of all curves run as ONE compiled, vmapped program.
+
+    **Main arguments:**
+
+    - `data`: a sequence of `jc.IndentationData`, all with the same number of
+      samples (their times and values may differ), e.g. the curves of a force map.
+    - `scene_template`, `n_terms`: as for `jc.fit_prony` (one template for all
+      curves; the data's loading replaces its program, curve by curve).
+
+    **Other arguments:**
+
+    - `weights`: `None`, or a sequence with one `(nt,)` weight array per curve.
+    - `lm_steps`: bound on the LM steps of every curve.
+    - `**options`: any other keyword of `jc.fit_prony` (`init` as a sequence of one
+      `jc.Prony` per curve, or `None`), except `optimiser` (always `"lm"`).
+
+    **Returns:** a list of `jc.PronyFit`, one per curve, each as `jc.fit_prony(...,
+    optimiser="lm")` would return it: the same start (from each curve's data), the
+    same LM iteration, the same sensitivities and certificate.
+
+    Cost: the start and the sensitivities of each curve are computed one curve at a
+    time (a few model evaluations each, with the program compiled for one curve),
+    the LM solves together. Under `vmap` the batched loop runs as many steps as the
+    slowest curve needs. A curve whose LM ends with a parameter at a boundary of the
+    parametrisation is restarted alone, as `fit_prony` does (the unbatched LM then
+    compiles as well).
+    """
+    data = list(data)
+    if not data or not all(isinstance(d, IndentationData) for d in data):
+        raise TypeError("data must be a non-empty sequence of jc.IndentationData")
+    if "optimiser" in options:
+        raise ValueError("fit_prony_batch always uses optimiser='lm'")
+    if not _have_optimistix():
+        raise ImportError('fit_prony_batch needs optimistix: pip install "jaxcontact[fit]"')
+    sizes = {d.times.shape[0] for d in data}
+    if len(sizes) != 1:
+        raise ValueError(f"fit_prony_batch: every curve needs the same number of "
+                         f"samples, got {sorted(sizes)}")
+    weights = [None] * len(data) if weights is None else list(weights)
+    inits = options.pop("init", None)
+    inits = [None] * len(data) if inits is None else list(inits)
+    if len(weights) != len(data) or len(inits) != len(data):
+        raise ValueError(f"fit_prony_batch: weights and init need one entry per curve "
+                         f"({len(data)})")
+
+    def one(i, lm):
+        return fit_prony(data[i], scene_template, n_terms, weights=weights[i],
+                         init=inits[i], optimiser="lm", lm_steps=lm_steps, _lm=lm,
+                         **options)
+
+    # -- Set-up of every curve (the start from its data) ---------------------------------
+    thetas, args = [], []
+    for i in range(len(data)):
+        lm = {"capture": None}
+        try:
+            one(i, lm)
+        except _Captured:
+            pass
+        theta, a = lm["capture"]
+        thetas.append(theta)
+        args.append(a)
+    dtype = scene_template.grid.size.dtype
+
+    # -- One batched LM solve --------------------------------------------------------------
+    stacked_args, axes = _stack(args)
+    theta_b = jax.tree.map(lambda *x: jnp.stack(x), *thetas)
+    rtol = 1e-8 if jnp.finfo(dtype).bits >= 64 else 1e-4
+    new, ok, steps = _lm_solve_batch(theta_b, stacked_args, axes, rtol, 0.1 * rtol,
+                                     lm_steps)
+
+    # -- Finish up, curve by curve -------------------------------------------------------
+    fits = []
+    for i in range(len(data)):
+        result = (jax.tree.map(lambda x, i=i: x[i], new), ok[i], steps[i])
+        fits.append(one(i, {"result": result}))
+    return fits
 
 
 def _have_optimistix() -> bool:
@@ -728,6 +856,7 @@ def fit_prony(
     weights=None,
     bounds: dict | None = None,
     _model: Callable | None = None,
+    _lm: dict | None = None,
 ) -> PronyFit:
     """Fit a Prony series `G(t) = g_inf + sum_i g_i exp(-t / tau_i)` to indentation
     data, through the full contact model.
@@ -1058,7 +1187,12 @@ def fit_prony(
             raise ValueError(f"the model gives a non-finite loss at the start {init!r}")
         rtol = 1e-8 if jnp.finfo(dtype).bits >= 64 else 1e-4
         try:
-            new, ok, steps = _lm_solve(theta, ev.args, rtol, 0.1 * rtol, lm_steps)
+            if _lm is not None and "result" in _lm and not _lm.get("used"):
+                # `fit_prony_batch`: this curve's LM ran in the batched program
+                _lm["used"] = True
+                new, ok, steps = _lm["result"]
+            else:
+                new, ok, steps = _lm_solve(theta, ev.args, rtol, 0.1 * rtol, lm_steps)
         except eqx.EquinoxRuntimeError as exc:  # a trial made an invalid material
             first_line = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
             return theta, False, ("Levenberg-Marquardt stopped: a trial step made an "
@@ -1103,6 +1237,9 @@ def fit_prony(
         return optimise_lm(theta)
 
     used = optimiser
+    if _lm is not None and "capture" in _lm:  # `fit_prony_batch`: set-up only
+        _lm["capture"] = (theta, ev.args)
+        raise _Captured
     if optimiser == "lm":
         history.append(float(ev.loss(theta)[0]))
         theta, message, probe, steps_adam, steps_lbfgs = with_probes(run_lm, theta, 0)
