@@ -293,25 +293,33 @@ def _lee_radok_columns(t, drive, taus):
     return np.concatenate([drive[:, None], h], axis=1)
 
 
-def lee_radok_misfit(time, force, depth, mode, *, arms=2, n_tau=20, start=0):
-    """Mean squared misfit of the best closed-form Lee-Radok model with `arms`
+def lee_radok_fit(time, force, depth, mode, *, arms=2, n_tau=20, start=0, weights=None,
+                  positive=False):
+    """The best closed-form Lee-Radok model of a loading-and-hold curve, with `arms`
     relaxation (creep) times on a log grid of `n_tau` times between the smallest
-    sample step and the span: the contact point's objective in `read_afm(...,
-    contact="viscoelastic")`.
+    sample step (at least 1e-3 of the span) and the span.
 
     Valid while the contact radius does not shrink (loading and hold). For a sphere,
     with `u = depth^(3/2)`:
 
     - relaxation (depth imposed): `F(t) = int_0^t G_app(t - s) du(s)`,
-      `G_app = c_inf + sum_i c_i exp(-t / tau_i)`;
+      `G_app = c_0 + sum_i c_i exp(-t / tau_i)`;
     - creep (force imposed): `u(t) = int_0^t J_app(t - s) dF(s)`,
       `J_app = c_0 + sum_i c_i (1 - exp(-t / tau_i))`.
 
-    Both are linear in the `c` (apparent moduli or compliances, which absorb the
-    radius and Poisson's ratio), so each set of times costs one small linear least
-    squares; the relative misfit (`mean((model - target)^2) / mean(target^2)`) of the
-    best set is returned, over the samples from `start` on (the model runs from the
-    first). `time`, `force`, `depth`: `(n,)`, zero at the contact.
+    Both are linear in the `c` (apparent moduli or compliances: `G_app = 8 sqrt(R)
+    G / (3 (1 - nu))`, `J_app = 3 (1 - nu) J / (8 sqrt(R))`), so each set of times
+    costs one small linear least squares (normal equations from one Gram matrix).
+
+    **Arguments:** `time`, `force`, `depth`: `(n,)`, zero at the contact; `mode`:
+    `"relaxation"` or `"creep"`; `start`: the residual counts from this sample on
+    (the model runs from the first); `weights`: `(n,)` sample weights (default 1);
+    `positive`: only sets of times whose `c` are all > 0 (a valid series).
+
+    **Returns:** `(misfit, taus, c)`: the relative weighted misfit
+    `mean((w (model - target))^2) / mean((w target)^2)` over the counted samples, the
+    `(arms,)` times and the `(arms + 1,)` coefficients `c_0, c_1..` (`inf`, `None`,
+    `None` when no set qualifies).
     """
     t = np.asarray(time, float)
     u = np.clip(np.asarray(depth, float), 0.0, None) ** 1.5
@@ -324,13 +332,14 @@ def lee_radok_misfit(time, force, depth, mode, *, arms=2, n_tau=20, start=0):
         cols = _lee_radok_columns(t, f, taus)
         cols = np.concatenate([cols[:, :1], cols[:, :1] - cols[:, 1:]], axis=1)
         target = u
-    cols, target = cols[start:], target[start:]
+    w = np.ones(t.shape) if weights is None else np.asarray(weights, float)
+    cols, target = cols[start:] * w[start:, None], target[start:] * w[start:]
     scale = max(float(np.sqrt(np.mean(target**2))), 1e-300)
     cols, target = cols / scale, target / scale
     gram, rhs, tt = cols.T @ cols, cols.T @ target, float(target @ target)
     import itertools
 
-    best = np.inf
+    best = (np.inf, None, None)
     for combo in itertools.combinations(range(1, n_tau + 1), arms):
         idx = (0, *combo)
         a, b = gram[np.ix_(idx, idx)], rhs[list(idx)]
@@ -338,8 +347,19 @@ def lee_radok_misfit(time, force, depth, mode, *, arms=2, n_tau=20, start=0):
             c = np.linalg.solve(a + 1e-12 * np.trace(a) * np.eye(len(idx)), b)
         except np.linalg.LinAlgError:  # pragma: no cover - degenerate grid
             continue
-        best = min(best, (tt - 2 * c @ b + c @ a @ c) / target.size)
-    return max(best, 0.0)
+        if positive and not np.all(c > 0):
+            continue
+        value = max((tt - 2 * c @ b + c @ a @ c) / target.size, 0.0)
+        if value < best[0]:
+            best = (value, taus[np.asarray(combo) - 1], c)
+    return best
+
+
+def lee_radok_misfit(time, force, depth, mode, *, arms=2, n_tau=20, start=0):
+    """The relative misfit of `lee_radok_fit` (any sign of the coefficients): the
+    contact point's objective in `read_afm(..., contact="viscoelastic")`."""
+    return lee_radok_fit(time, force, depth, mode, arms=arms, n_tau=n_tau,
+                         start=start)[0]
 
 
 def _refine_contact(time, f_rel, height, code, ic, k, mode, metadata, *,
@@ -375,12 +395,13 @@ def _refine_contact(time, f_rel, height, code, ic, k, mode, metadata, *,
             best, best_value = int(j), value
     if best in (candidates[0], candidates[-1]) and best != ic:
         # no minimum inside the window: the approach is not the viscoelastic model's
-        # there (a curve still falling at the window's edge); keep the piecewise
-        # contact, zeroed (the model starts unloaded)
-        return ic, float(f_rel[ic]), (
+        # there (a misfit still falling at the window's edge); the piecewise result
+        # is kept as it is (zeroing the force there made the relaxation file's
+        # closed-form hold misfit worse: see benchmarks/notes/fit_real_files.md)
+        return ic, 0.0, (
             "viscoelastic refinement found no minimum within its window (the misfit "
             "falls towards its edge: the approach is not reproduced by the model); "
-            "kept the piecewise contact, force zeroed there")
+            "kept the piecewise contact and baseline")
     return best, float(f_rel[best]), (
         f"piecewise contact refined by {best - ic:+d} samples "
         f"({float(time[best] - time[ic]):+.3g} s) by the closed-form viscoelastic model")
@@ -450,7 +471,9 @@ def read_afm(source, *, index=0, contact_index=None, baseline="constant",
           around it (a quarter of the in-contact approach either way, at most 60
           candidates), the one where a curve zeroed there (force and depth 0 at
           contact: the model starts unloaded) is best reproduced over the approach and
-          hold by `lee_radok_misfit` with 2 arms. On a soft sample with a foot (the
+          hold by `lee_radok_misfit` with 2 arms (where the misfit has no minimum
+          inside that window, the piecewise result is kept; `contact_note` says
+          which). On a soft sample with a foot (the
           force creeping up before the Hertz law holds) the elastic piecewise fit puts
           the contact where the force is already above its baseline, and a model that
           starts unloaded cannot follow (see `benchmarks/notes/fit_real_files.md`).

@@ -3,7 +3,7 @@
     jaxcontact fit FILE... --radius R [--arms N|auto] [--out DIR] [--n N]
                    [--poisson NU] [--baseline constant|linear] [--samples A,H,R]
                    [--segments approach,hold,retract] [--steps K]
-                   [--contact viscoelastic|piecewise]
+                   [--contact viscoelastic|piecewise] [--start lee-radok|data]
                    [--tau-range LO,HI] [--no-check-grid]
 
 Each file is read by `jc.read_afm` (afmformats: `pip install "jaxcontact[afm]"`), its
@@ -69,6 +69,10 @@ def add_parser(sub):
                    help="Poisson's ratio, fixed (default 0.5: incompressible)")
     p.add_argument("--baseline", default="constant", choices=("constant", "linear"),
                    help="baseline of the contact point fit")
+    p.add_argument("--start", default="lee-radok", choices=("lee-radok", "data"),
+                   help="the fit's start: the closed-form Lee & Radok fit of the "
+                        "loading and hold (default), or jc.fit_prony's default start "
+                        "from apparent moduli")
     p.add_argument("--contact", default="viscoelastic",
                    choices=("viscoelastic", "piecewise"),
                    help="contact point: the piecewise baseline + Hertz fit refined by "
@@ -167,6 +171,7 @@ def _fit_one(path, args, samples, segments):
     import numpy as np
 
     import jaxcontact as jc
+    from jaxcontact._fit import lee_radok_start
 
     try:
         curve = jc.read_afm(path, baseline=args.baseline, segments=segments,
@@ -184,8 +189,15 @@ def _fit_one(path, args, samples, segments):
         if t.size <= 2 * k + 2:
             break
         # bin means of `counts` raw samples: weights sqrt(counts) (inverse noise)
+        init = None
+        if args.start == "lee-radok":
+            try:
+                init = lee_radok_start(data, template, k, poisson=args.poisson,
+                                       weights=np.sqrt(counts))
+            except ValueError:  # too few loading samples: the default start
+                init = None
         fit = jc.fit_prony(data, template, k, lm_steps=args.steps,
-                           weights=np.sqrt(counts),
+                           weights=np.sqrt(counts), init=init,
                            bounds={"tau": args.tau_bounds} if args.tau_bounds else None)
         aic, bic = _information(fit, 1 + 2 * k)
         fits[k] = (fit, aic, bic)
@@ -255,6 +267,8 @@ def _fit_one(path, args, samples, segments):
                                "hold (at most 600, evenly thinned) over the raw curve's "
                                "white noise (successive differences)"),
         "contact": args.contact,
+        "contact_note": curve.contact_note,
+        "start": args.start,
         "converged": bool(fit.converged),
         "message": fit.message,
         "information_criteria": {str(k): {"aic": v[1], "bic": v[2], "loss": v[0].loss,
