@@ -312,8 +312,9 @@ def fit_prony_batch(data, scene_template: Scene, n_terms: int = 2, *, weights=No
 
     - `weights`: `None`, or a sequence with one `(nt,)` weight array per curve.
     - `lm_steps`: bound on the LM steps of every curve.
-    - `**options`: any other keyword of `jc.fit_prony` (`init` as a sequence of one
-      `jc.Prony` per curve, or `None`), except `optimiser` (always `"lm"`).
+    - `**options`: any other keyword of `jc.fit_prony` (`init`: `None`,
+      `"lee-radok"`, or a sequence of one `jc.Prony` per curve), except `optimiser`
+      (always `"lm"`).
 
     **Returns:** a list of `jc.PronyFit`, one per curve, each as `jc.fit_prony(...,
     optimiser="lm")` would return it: the same start (from each curve's data), the
@@ -339,7 +340,9 @@ def fit_prony_batch(data, scene_template: Scene, n_terms: int = 2, *, weights=No
                          f"samples, got {sorted(sizes)}")
     weights = [None] * len(data) if weights is None else list(weights)
     inits = options.pop("init", None)
-    inits = [None] * len(data) if inits is None else list(inits)
+    if inits is None or isinstance(inits, str):  # None or "lee-radok": every curve
+        inits = [inits] * len(data)
+    inits = list(inits)
     if len(weights) != len(data) or len(inits) != len(data):
         raise ValueError(f"fit_prony_batch: weights and init need one entry per curve "
                          f"({len(data)})")
@@ -385,7 +388,7 @@ def lee_radok_start(data: IndentationData, scene_template: Scene, n_terms: int, 
     The samples up to the first where the depth falls below 98 % of its running
     maximum (the loading and the hold: the contact radius does not shrink, and the
     full contact model is the closed form there, up to its grid) are fitted by
-    `jaxcontact._afm.lee_radok_fit` (times on a log grid of 20 per decade span,
+    `jaxcontact._afm.lee_radok_fit` (times on a log grid of 20 over the span,
     coefficients > 0, the fit's `weights`); the apparent moduli (compliances) are
     converted with the sphere's radius `R` and `poisson`:
     `G = 3 (1 - nu) G_app / (8 sqrt(R))` (relaxation, displacement control),
