@@ -121,7 +121,8 @@ def summary(res, seg, t, sigma):
     late = hold & (t > t[hold][0] + 0.5)
     return {
         "hold_rms_over_sigma": float(np.sqrt(np.mean(rh**2)) / sigma),
-        "hold_after_0.5s_rms_over_sigma": float(np.sqrt(np.mean(res[late] ** 2)) / sigma),
+        "hold_after_0.5s_rms_over_sigma": float(np.sqrt(np.mean(res[late] ** 2))
+                                                / sigma),
         "approach_rms_over_sigma": float(np.sqrt(np.mean(res[app] ** 2)) / sigma),
         "hold_residual_white_over_sigma": white(rh) / sigma,
         "hold_low_frequency_rms_over_sigma": float(np.sqrt(np.mean(smooth**2)) / sigma),
@@ -163,7 +164,8 @@ def full_model(n_list=(16, 32, 64)):
     jax.config.update("jax_enable_x64", True)
     import jax.numpy as jnp
 
-    c = jc.read_afm(FILES["creep"], segments=("approach", "hold"), contact="viscoelastic")
+    c = jc.read_afm(FILES["creep"], segments=("approach", "hold"),
+                    contact="viscoelastic")
     t, f, d, s, counts = c.resampled({"approach": 8, "hold": 24}, return_counts=True)
     w = np.sqrt(counts)
 
@@ -202,7 +204,8 @@ def full_model(n_list=(16, 32, 64)):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--full", action="store_true", help="also the full-model grid bias")
+    parser.add_argument("--full", action="store_true",
+                        help="also the full-model grid bias")
     parser.add_argument("--out", default=str(Path(__file__).parent / "results"
                                              / "fit_real_files.json"))
     args = parser.parse_args()
@@ -218,8 +221,9 @@ def main():
             sigma = c.noise(kind)
             for arms in (1, 2, 3, 4):
                 taus, res = lr_fit(t, f, d, c.mode, arms)
-                row = {"file": name, "contact": contact, "contact_time_s": c.contact_time,
-                       "arms": arms, "sigma": sigma, "taus_s": taus.tolist(),
+                row = {"file": name, "contact": contact,
+                       "contact_time_s": c.contact_time, "arms": arms,
+                       "sigma": sigma, "taus_s": taus.tolist(),
                        **summary(res, s, t, sigma)}
                 result["floor"].append(row)
                 print(json.dumps(row), flush=True)
@@ -234,7 +238,8 @@ def main():
         print(json.dumps(row), flush=True)
     for p in (1.25, 1.5, 1.75, 2.0):
         taus, res = lr_fit(t, f, d, c.mode, 2, p=p)
-        row = {"file": "relaxation", "arms": 2, "exponent": p, **summary(res, s, t, sigma)}
+        row = {"file": "relaxation", "arms": 2, "exponent": p,
+               **summary(res, s, t, sigma)}
         result["exponent"].append(row)
         print(json.dumps(row), flush=True)
     if args.full:

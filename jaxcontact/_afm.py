@@ -404,7 +404,8 @@ def _refine_contact(time, f_rel, height, code, ic, k, mode, metadata, *,
             "kept the piecewise contact and baseline")
     return best, float(f_rel[best]), (
         f"piecewise contact refined by {best - ic:+d} samples "
-        f"({float(time[best] - time[ic]):+.3g} s) by the closed-form viscoelastic model")
+        f"({float(time[best] - time[ic]):+.3g} s) by the closed-form viscoelastic "
+        "model")
 
 
 # ---------------------------------------------------------------------------------------
@@ -603,13 +604,15 @@ def read_afm(source, *, index=0, contact_index=None, baseline="constant",
     pre = app[app < ic]
     noise = float(np.std(force[pre] - base(pre))) if pre.size >= 2 else float("nan")
     if contact not in ("piecewise", "viscoelastic"):
-        raise ValueError(f"contact must be 'piecewise' or 'viscoelastic', got {contact!r}")
+        raise ValueError(f"contact must be 'piecewise' or 'viscoelastic', got "
+                         f"{contact!r}")
     offset = 0.0  # force above the baseline at contact, removed ("viscoelastic")
     contact_note = ("given (contact_index)" if contact_index is not None else
                     "piecewise baseline + Hertz fit (Lin et al. 2007)")
     if contact == "viscoelastic" and contact_index is None:
         ic, offset, contact_note = _refine_contact(
-            time, force - base(np.arange(time.size)), height, code, ic, k, mode, metadata)
+            time, force - base(np.arange(time.size)), height, code, ic, k, mode,
+            metadata)
     f0 = float(base(ic)) + offset
     # A tilted baseline (virtual deflection: a function of the base's position) is
     # evaluated at every sample's own travel; a constant one is the same everywhere.

@@ -231,8 +231,10 @@ def _fit_one(path, args, samples, segments):
     # bins hold a sample or two, as much as its last seconds).
     _, raw_res, raw_seg = raw_residual(fit, curve, template)
     raw_hold = raw_seg == 1
-    chi_raw = float(np.sqrt(np.mean(raw_res[raw_hold] ** 2)) / curve.noise(fit.kind)) if (
-        raw_hold.any()) else None
+    chi_raw = None
+    if raw_hold.any():
+        chi_raw = float(np.sqrt(np.mean(raw_res[raw_hold] ** 2))
+                        / curve.noise(fit.kind))
     result = {
         "file": str(path),
         "mode": curve.mode,
@@ -263,9 +265,9 @@ def _fit_one(path, args, samples, segments):
         "residual_over_noise": chi,
         "residual_over_noise_hold": chi_hold,
         "hold_residual_over_noise_raw": chi_raw,
-        "hold_residual_note": ("RMS of the fitted model against the raw samples of the "
-                               "hold (at most 600, evenly thinned) over the raw curve's "
-                               "white noise (successive differences)"),
+        "hold_residual_note": ("RMS of the fitted model against the raw samples of "
+                               "the hold (at most 600, evenly thinned) over the raw "
+                               "curve's white noise (successive differences)"),
         "contact": args.contact,
         "contact_note": curve.contact_note,
         "start": args.start,
@@ -410,9 +412,9 @@ def _print(r, json_path):
               f"({r['discretisation_rms'] / r['residual_rms']:.2f} x the residual, "
               f"{r['discretisation_rms'] / r['noise_raw']:.2f} x the raw noise)")
         if r["discretisation_rms"] > r["noise_raw"]:
-            print("  note: the grid's bias exceeds the raw noise: a finer --n lowers it "
-                  "(the creep file: 8.2 x the noise at 16^2, 1.3 x at 32^2, 0.4 x at "
-                  "64^2)")
+            print("  note: the grid's bias exceeds the raw noise: a finer --n lowers "
+                  "it (the creep file: 8.2 x the noise at 16^2, 1.3 x at 32^2, 0.4 x "
+                  "at 64^2)")
     if len(r["information_criteria"]) > 1:
         for k, v in r["information_criteria"].items():
             print(f"  {k} arm(s): AIC {v['aic']:.1f}  BIC {v['bic']:.1f}"

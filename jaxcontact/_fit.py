@@ -333,7 +333,8 @@ def fit_prony_batch(data, scene_template: Scene, n_terms: int = 2, *, weights=No
     if "optimiser" in options:
         raise ValueError("fit_prony_batch always uses optimiser='lm'")
     if not _have_optimistix():
-        raise ImportError('fit_prony_batch needs optimistix: pip install "jaxcontact[fit]"')
+        raise ImportError('fit_prony_batch needs optimistix: pip install '
+                          '"jaxcontact[fit]"')
     sizes = {d.times.shape[0] for d in data}
     if len(sizes) != 1:
         raise ValueError(f"fit_prony_batch: every curve needs the same number of "
@@ -352,7 +353,7 @@ def fit_prony_batch(data, scene_template: Scene, n_terms: int = 2, *, weights=No
                          init=inits[i], optimiser="lm", lm_steps=lm_steps, _lm=lm,
                          **options)
 
-    # -- Set-up of every curve (the start from its data) ---------------------------------
+    # -- Set-up of every curve (the start from its data) -----------------------------
     thetas, args = [], []
     for i in range(len(data)):
         lm = {"capture": None}
@@ -365,14 +366,14 @@ def fit_prony_batch(data, scene_template: Scene, n_terms: int = 2, *, weights=No
         args.append(a)
     dtype = scene_template.grid.size.dtype
 
-    # -- One batched LM solve --------------------------------------------------------------
+    # -- One batched LM solve --------------------------------------------------------
     stacked_args, axes = _stack(args)
     theta_b = jax.tree.map(lambda *x: jnp.stack(x), *thetas)
     rtol = 1e-8 if jnp.finfo(dtype).bits >= 64 else 1e-4
     new, ok, steps = _lm_solve_batch(theta_b, stacked_args, axes, rtol, 0.1 * rtol,
                                      lm_steps)
 
-    # -- Finish up, curve by curve -------------------------------------------------------
+    # -- Finish up, curve by curve ---------------------------------------------------
     fits = []
     for i in range(len(data)):
         result = (jax.tree.map(lambda x, i=i: x[i], new), ok[i], steps[i])
@@ -1024,7 +1025,8 @@ def fit_prony(
         raise ValueError(f"noise_std must be finite and > 0, got {noise_std!r}")
     if isinstance(init, str):
         if init != "lee-radok":
-            raise ValueError(f"init must be a jc.Prony, None or 'lee-radok', got {init!r}")
+            raise ValueError(f"init must be a jc.Prony, None or 'lee-radok', got "
+                             f"{init!r}")
         nu = float(scene_template.material.poisson) if poisson is None else poisson
         init = lee_radok_start(data, scene_template, n, poisson=nu, weights=weights)
     if init is not None and (not isinstance(init, Prony) or init.g.shape != (n,)):

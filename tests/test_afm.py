@@ -300,7 +300,8 @@ def test_fit_command_on_the_relaxation_file_and_the_radius_scaling(tmp_path, cap
         assert js["radius_m"] == radius and js["arms"] == 1
         assert js["discretisation_rms"] > 0  # N: the 8^2 model against 16^2
         # the model against the raw hold samples, in units of their white noise
-        assert js["hold_residual_over_noise_raw"] > 1 and js["contact"] == "viscoelastic"
+        assert js["hold_residual_over_noise_raw"] > 1
+        assert js["contact"] == "viscoelastic"
         corr = np.array(js["log_parameter_correlation"], float)
         assert corr.shape == (3, 3) and np.allclose(np.diag(corr), 1)
         if js["plot"]:
@@ -375,7 +376,7 @@ def test_one_arm_fit_of_the_creep_file_converges():
         assert np.all(np.abs(a - b) < 3 * s), (key, a, b, s)
 
 
-# ---- the viscoelastic contact point ----------------------------------------------------
+# ---- the viscoelastic contact point -------------------------------------------------
 
 
 def synthetic_viscoelastic(noise=0.0, seed=0):

@@ -689,8 +689,8 @@ def _batch_matches_singles(fits, singles, same_steps=True):
         assert a.converged == b.converged and a.converged, (a.message, b.message)
         if same_steps:
             assert a.lm_steps == b.lm_steps
-        np.testing.assert_allclose(np.log(params(a.material)), np.log(params(b.material)),
-                                   rtol=0, atol=1e-8)
+        np.testing.assert_allclose(np.log(params(a.material)),
+                                   np.log(params(b.material)), rtol=0, atol=1e-8)
         for key in ("g_inf", "g", "tau"):
             np.testing.assert_allclose(a.std[key], b.std[key], rtol=1e-6)
 
@@ -703,7 +703,8 @@ def test_batch_equals_fits_one_by_one_on_the_closed_form_model():
     for scale in (1.0, 0.5, 2.0):
         base, template, (fn, ctx) = surrogate_case("force")
         m = pmma()
-        m = jc.Prony(scale * m.g_inf, scale * m.g, m.tau * np.array([1.0, 1.5]), m.poisson)
+        m = jc.Prony(scale * m.g_inf, scale * m.g, m.tau * np.array([1.0, 1.5]),
+                     m.poisson)
         times, delta = ctx
         force, _ = fn(m, ctx)
         force = force * (1 + 0.01 * rng.standard_normal(force.shape))
