@@ -10,13 +10,19 @@ made the data) from its default start (apparent moduli), with optimistix's
 Levenberg-Marquardt ("lm", the default) and the in-house Adam + L-BFGS ("lbfgs").
 Reported: wall time of the fit including compilation (what a user waits for) and of a
 second, compiled fit, the steps, model evaluations, final loss, relative error of each
-parameter. A batch of curves (issue 29) is not measured: fits of many curves at once
-are not implemented yet.
+parameter.
+
+`--batch B`: the time of `jc.fit_prony_batch` on B curves (PMMA with its moduli scaled
+by 0.5-2 and its times by 0.7-1.4, 0.5 % noise, `scheme="constant"`) against
+`jc.fit_prony(optimiser="lm")` on the first of them, both compiled (second call) and
+including compilation; the load average is recorded with every timing (the machine
+is shared).
 
 Usage::
 
     python benchmarks/fit.py                 # 64^2 x 40
     python benchmarks/fit.py --n 32 --nt 20 --optimiser lm
+    python benchmarks/fit.py --n 16 --nt 20 --batch 16   # -> results/fit_batch.json
 
 Results go to `benchmarks/results/fit.json`.
 """
@@ -86,13 +92,64 @@ def run(n, nt, optimiser):
     }
 
 
+def batch_curves(n, nt, count, seed=0):
+    grid = jc.Grid((n, n), 1280e-6)
+    times = jnp.concatenate([jnp.zeros(1), jnp.geomspace(0.5, 500.0, nt - 1)])
+    delta = jnp.where(times > 0, 20e-6, 0.0)
+    rng = np.random.default_rng(seed)
+    base = pmma()
+    data = []
+    for _ in range(count):
+        m = jc.Prony(base.g_inf * rng.uniform(0.5, 2), base.g * rng.uniform(0.5, 2, 2),
+                     base.tau * rng.uniform(0.7, 1.4, 2), NU)
+        sol = jc.solve(jc.Scene(grid, jc.Sphere(R), m, times,
+                                normal=jc.Displacement(delta)), scheme="constant")
+        force = np.asarray(sol.normal_force) * (1 + 0.005 * rng.standard_normal(nt))
+        data.append(jc.IndentationData(times, force=force, depth=delta))
+    template = jc.Scene(grid, jc.Sphere(R), jc.Elastic(1e9, NU), times,
+                        normal=jc.Displacement(delta))
+    return data, template
+
+
+def run_batch(n, nt, count):
+    data, template = batch_curves(n, nt, count)
+    options = {"solve_options": {"scheme": "constant"}}
+    out = {"n": n, "nt": nt, "curves": count}
+    for label, call in (
+            ("one_curve", lambda: [jc.fit_prony(data[0], template, 2, optimiser="lm",
+                                                **options)]),
+            ("batch", lambda: jc.fit_prony_batch(data, template, 2, **options))):
+        for attempt in ("including_compile", "compiled"):
+            load = os.getloadavg()
+            start = time.perf_counter()
+            fits = call()
+            out[f"{label}_s_{attempt}"] = time.perf_counter() - start
+            out[f"{label}_load_average_{attempt}"] = [load, os.getloadavg()]
+        out[f"{label}_lm_steps"] = [int(f.lm_steps) for f in fits]
+        out[f"{label}_converged"] = [bool(f.converged) for f in fits]
+        print(json.dumps(out), flush=True)
+    out["batch_s_per_curve_compiled"] = out["batch_s_compiled"] / count
+    return out
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=64)
     parser.add_argument("--nt", type=int, default=40)
     parser.add_argument("--optimiser", default="both", choices=("lm", "lbfgs", "both"))
+    parser.add_argument("--batch", type=int, default=0,
+                        help="time a batch of this many curves instead")
     parser.add_argument("--out", default=str(Path(__file__).parent / "results" / "fit.json"))
     args = parser.parse_args()
+    if args.batch:
+        result = {"machine": {"platform": platform.platform(),
+                              "cpu_count": os.cpu_count(), "jax": jax.__version__,
+                              "device": str(jax.devices()[0])},
+                  "dtype": "float64", "case": run_batch(args.n, args.nt, args.batch)}
+        out = Path(args.out).with_name("fit_batch.json")
+        out.write_text(json.dumps(result, indent=2))
+        print("wrote", out)
+        return
     load_before = os.getloadavg()
     cases = []
     for optimiser in (("lm", "lbfgs") if args.optimiser == "both" else (args.optimiser,)):

@@ -9,6 +9,7 @@ from ._analytic import Hertz as Hertz, LeeRadok as LeeRadok
 from ._cache import enable_compilation_cache as enable_compilation_cache
 from ._fit import (
     fit_prony as fit_prony,
+    fit_prony_batch as fit_prony_batch,
     IndentationData as IndentationData,
     PronyFit as PronyFit,
 )
@@ -70,7 +71,7 @@ __all__ = [
     "AbstractStepSolver", "PolonskyKeer", "Rounds", "JointPCG", "Fallback",
     "LoadByDisplacement", "ImplicitAdjoint", "StepProblem", "StepGuess", "StepResult",
     # Analytic references, fitting, AFM files
-    "Hertz", "LeeRadok", "fit_prony", "IndentationData", "PronyFit", "read_afm",
+    "Hertz", "LeeRadok", "fit_prony", "fit_prony_batch", "IndentationData", "PronyFit", "read_afm",
     "AFMCurve",
     # Presets and warnings
     "presets", "EdgeContactWarning", "TimeStepWarning",

@@ -94,6 +94,7 @@ class AFMCurve:
     - `path`: the file (or `None`), `metadata`: afmformats' metadata dict.
     - `raw`: dict of the whole file's columns (`time`, `force`, `height`, `segment`
       with -1 for pauses) for plots.
+    - `contact_note`: how the contact point was found (`read_afm(contact=...)`).
     """
 
     time: np.ndarray
@@ -110,6 +111,7 @@ class AFMCurve:
     metadata: dict
     raw: dict
     units: tuple = (("time", "s"), ("force", "N"), ("depth", "m"))
+    contact_note: str = ""
 
     def data(self, n_samples=None):
         """The curve as a `jc.IndentationData` (SI: s, N, m). With `n_samples`
@@ -277,6 +279,135 @@ def contact_point(travel, force, *, baseline="constant", exponent=1.5, grid=200)
     return x0 + uc * xs, np.asarray(out)
 
 
+def _lee_radok_columns(t, drive, taus):
+    """`(n, 1 + m)` columns of the closed-form Lee-Radok response to a piecewise-linear
+    `drive` (zero at `t[0]`): the drive itself and, for each time `tau` of `taus`,
+    `h(t) = int_0^t exp(-(t - s) / tau) d drive(s)` (exact for piecewise-linear
+    input; one recursion over the samples, vectorised over `taus`)."""
+    dt = np.diff(t)[:, None]
+    e = np.exp(-dt / taus[None, :])
+    inc = np.diff(drive)[:, None] / dt * taus[None, :] * (1 - e)
+    h = np.zeros((t.size, taus.size))
+    for k in range(1, t.size):
+        h[k] = e[k - 1] * h[k - 1] + inc[k - 1]
+    return np.concatenate([drive[:, None], h], axis=1)
+
+
+def lee_radok_fit(time, force, depth, mode, *, arms=2, n_tau=20, start=0, weights=None,
+                  positive=False):
+    """The best closed-form Lee-Radok model of a loading-and-hold curve, with `arms`
+    relaxation (creep) times on a log grid of `n_tau` times between the smallest
+    sample step (at least 1e-3 of the span) and the span.
+
+    Valid while the contact radius does not shrink (loading and hold). For a sphere,
+    with `u = depth^(3/2)`:
+
+    - relaxation (depth imposed): `F(t) = int_0^t G_app(t - s) du(s)`,
+      `G_app = c_0 + sum_i c_i exp(-t / tau_i)`;
+    - creep (force imposed): `u(t) = int_0^t J_app(t - s) dF(s)`,
+      `J_app = c_0 + sum_i c_i (1 - exp(-t / tau_i))`.
+
+    Both are linear in the `c` (apparent moduli or compliances: `G_app = 8 sqrt(R)
+    G / (3 (1 - nu))`, `J_app = 3 (1 - nu) J / (8 sqrt(R))`), so each set of times
+    costs one small linear least squares (normal equations from one Gram matrix).
+
+    **Arguments:** `time`, `force`, `depth`: `(n,)`, zero at the contact; `mode`:
+    `"relaxation"` or `"creep"`; `start`: the residual counts from this sample on
+    (the model runs from the first); `weights`: `(n,)` sample weights (default 1);
+    `positive`: only sets of times whose `c` are all > 0 (a valid series).
+
+    **Returns:** `(misfit, taus, c)`: the relative weighted misfit
+    `mean((w (model - target))^2) / mean((w target)^2)` over the counted samples, the
+    `(arms,)` times and the `(arms + 1,)` coefficients `c_0, c_1..` (`inf`, `None`,
+    `None` when no set qualifies).
+    """
+    t = np.asarray(time, float)
+    u = np.clip(np.asarray(depth, float), 0.0, None) ** 1.5
+    f = np.asarray(force, float)
+    span, first = float(t[-1] - t[0]), float(np.min(np.diff(t)))
+    taus = np.geomspace(max(first, 1e-3 * span), span, n_tau)
+    if mode == "relaxation":
+        cols, target = _lee_radok_columns(t, u, taus), f
+    else:
+        cols = _lee_radok_columns(t, f, taus)
+        cols = np.concatenate([cols[:, :1], cols[:, :1] - cols[:, 1:]], axis=1)
+        target = u
+    w = np.ones(t.shape) if weights is None else np.asarray(weights, float)
+    cols, target = cols[start:] * w[start:, None], target[start:] * w[start:]
+    scale = max(float(np.sqrt(np.mean(target**2))), 1e-300)
+    cols, target = cols / scale, target / scale
+    gram, rhs, tt = cols.T @ cols, cols.T @ target, float(target @ target)
+    import itertools
+
+    best = (np.inf, None, None)
+    for combo in itertools.combinations(range(1, n_tau + 1), arms):
+        idx = (0, *combo)
+        a, b = gram[np.ix_(idx, idx)], rhs[list(idx)]
+        try:
+            c = np.linalg.solve(a + 1e-12 * np.trace(a) * np.eye(len(idx)), b)
+        except np.linalg.LinAlgError:  # pragma: no cover - degenerate grid
+            continue
+        if positive and not np.all(c > 0):
+            continue
+        value = max((tt - 2 * c @ b + c @ a @ c) / target.size, 0.0)
+        if value < best[0]:
+            best = (value, taus[np.asarray(combo) - 1], c)
+    return best
+
+
+def lee_radok_misfit(time, force, depth, mode, *, arms=2, n_tau=20, start=0):
+    """The relative misfit of `lee_radok_fit` (any sign of the coefficients): the
+    contact point's objective in `read_afm(..., contact="viscoelastic")`."""
+    return lee_radok_fit(time, force, depth, mode, arms=arms, n_tau=n_tau,
+                         start=start)[0]
+
+
+def _refine_contact(time, f_rel, height, code, ic, k, mode, metadata, *,
+                    max_candidates=60, max_hold=1000):
+    """`(index, offset, note)`: the contact sample near `ic` that minimises
+    `lee_radok_misfit` (2 arms) of the curve zeroed there, and the force above the
+    baseline at it (`f_rel[index]`, the new zero). Every candidate's model runs from
+    its own contact; the misfit is counted over the same samples for all (the
+    approach from the last candidate on, and the hold, thinned to at most `max_hold`
+    samples), so that a later contact is not rewarded for dropping samples."""
+    del metadata
+    app = np.flatnonzero(code == 0)
+    after = app[app >= ic]
+    w = max(5, after.size // 4)
+    lo = max(int(app[0]), ic - w)
+    hi = min(int(app[-1]) - 8, ic + w)  # at least 8 approach samples in contact
+    if hi <= lo:
+        return ic, float(f_rel[ic]), "too few approach samples to refine the contact"
+    candidates = np.unique(np.linspace(lo, hi, min(max_candidates, hi - lo + 1)).astype(
+        int))
+    hold = np.flatnonzero(code == 1)
+    hold = hold[:: max(1, -(-hold.size // max_hold))]
+    best, best_value = ic, np.inf
+    values = []
+    for j in candidates:
+        idx = np.concatenate([app[app >= j], hold])
+        f = f_rel[idx] - f_rel[j]
+        d = (height[j] - height[idx]) - f / k
+        value = lee_radok_misfit(time[idx] - time[j], f, d, mode, arms=2,
+                                 start=int(np.sum(app[app >= j] < candidates[-1])))
+        values.append(value)
+        if value < best_value:
+            best, best_value = int(j), value
+    if best in (candidates[0], candidates[-1]) and best != ic:
+        # no minimum inside the window: the approach is not the viscoelastic model's
+        # there (a misfit still falling at the window's edge); the piecewise result
+        # is kept as it is (zeroing the force there made the relaxation file's
+        # closed-form hold misfit worse: see benchmarks/notes/fit_real_files.md)
+        return ic, 0.0, (
+            "viscoelastic refinement found no minimum within its window (the misfit "
+            "falls towards its edge: the approach is not reproduced by the model); "
+            "kept the piecewise contact and baseline")
+    return best, float(f_rel[best]), (
+        f"piecewise contact refined by {best - ic:+d} samples "
+        f"({float(time[best] - time[ic]):+.3g} s) by the closed-form viscoelastic "
+        "model")
+
+
 # ---------------------------------------------------------------------------------------
 # Segments.
 
@@ -316,7 +447,7 @@ def _column(curve, names):
 
 
 def read_afm(source, *, index=0, contact_index=None, baseline="constant",
-             segments=SEGMENT_NAMES, mode=None) -> AFMCurve:
+             segments=SEGMENT_NAMES, mode=None, contact="piecewise") -> AFMCurve:
     """Read one force-distance curve from an AFM file into an `AFMCurve`.
 
     **Arguments:**
@@ -332,6 +463,21 @@ def read_afm(source, *, index=0, contact_index=None, baseline="constant",
     - `mode`: `"creep"` or `"relaxation"`; default: from the file's imaging mode
       (afmformats' `creep-compliance` / `stress-relaxation`), else from the hold
       (height held within 1 % of the depth: relaxation).
+    - `contact`: how the contact point is found (unless `contact_index` is given):
+        - `"piecewise"` (default): the baseline + Hertz fit of Lin et al. (2007) on
+          the approach (see the module notes); the force is measured from the fitted
+          baseline.
+        - `"viscoelastic"`: that point refined by the closed-form viscoelastic
+          (Lee-Radok) model that the fit itself assumes: among the approach samples
+          around it (a quarter of the in-contact approach either way, at most 60
+          candidates), the one where a curve zeroed there (force and depth 0 at
+          contact: the model starts unloaded) is best reproduced over the approach and
+          hold by `lee_radok_misfit` with 2 arms (where the misfit has no minimum
+          inside that window, the piecewise result is kept; `contact_note` says
+          which). On a soft sample with a foot (the
+          force creeping up before the Hertz law holds) the elastic piecewise fit puts
+          the contact where the force is already above its baseline, and a model that
+          starts unloaded cannot follow (see `benchmarks/notes/fit_real_files.md`).
 
     **Returns:** an `AFMCurve` (SI units: s, N, m).
 
@@ -437,15 +583,8 @@ def read_afm(source, *, index=0, contact_index=None, baseline="constant",
             b = b + coef[2] * tr_all[idx]
         return b
 
-    pre = app[app < ic]
-    noise = float(np.std(force[pre] - base(pre))) if pre.size >= 2 else float("nan")
-    f0 = float(base(ic))
-    # A tilted baseline (virtual deflection: a function of the base's position) is
-    # evaluated at every sample's own travel; a constant one is the same everywhere.
-    f_base = base(np.arange(time.size))
-    f_rel = force - f_base
-    depth = (height[ic] - height) - f_rel / k
-
+    # the depth from the piecewise fit's contact (for the mode of a hold)
+    depth_pl = (height[ic] - height) - (force - base(np.arange(time.size))) / k
     # -- Mode ---------------------------------------------------------------------------
     if mode is None:
         imaging = str(metadata.get("imaging mode", ""))
@@ -456,11 +595,30 @@ def read_afm(source, *, index=0, contact_index=None, baseline="constant",
         elif (code == 1).any():
             hold = code == 1
             mode = "relaxation" if np.ptp(height[hold]) < 0.01 * max(
-                float(depth[hold].max()), 1e-300) else "creep"
+                float(depth_pl[hold].max()), 1e-300) else "creep"
         else:
             mode = "relaxation"
     if mode not in ("creep", "relaxation"):
         raise ValueError(f"mode must be 'creep' or 'relaxation', got {mode!r}")
+
+    pre = app[app < ic]
+    noise = float(np.std(force[pre] - base(pre))) if pre.size >= 2 else float("nan")
+    if contact not in ("piecewise", "viscoelastic"):
+        raise ValueError(f"contact must be 'piecewise' or 'viscoelastic', got "
+                         f"{contact!r}")
+    offset = 0.0  # force above the baseline at contact, removed ("viscoelastic")
+    contact_note = ("given (contact_index)" if contact_index is not None else
+                    "piecewise baseline + Hertz fit (Lin et al. 2007)")
+    if contact == "viscoelastic" and contact_index is None:
+        ic, offset, contact_note = _refine_contact(
+            time, force - base(np.arange(time.size)), height, code, ic, k, mode,
+            metadata)
+    f0 = float(base(ic)) + offset
+    # A tilted baseline (virtual deflection: a function of the base's position) is
+    # evaluated at every sample's own travel; a constant one is the same everywhere.
+    f_base = base(np.arange(time.size))
+    f_rel = force - f_base - offset
+    depth = (height[ic] - height) - f_rel / k
 
     # -- Kept samples -------------------------------------------------------------------
     keep_code = np.isin(code, [SEGMENT_NAMES.index(s) for s in segments])
@@ -489,4 +647,5 @@ def read_afm(source, *, index=0, contact_index=None, baseline="constant",
         metadata=metadata,
         raw={"time": time, "force": force, "height": height, "segment": code,
              "contact_index": int(ic)},
+        contact_note=contact_note,
     )
