@@ -389,7 +389,7 @@ def lee_radok_start(data: IndentationData, scene_template: Scene, n_terms: int, 
     The samples up to the first where the depth falls below 98 % of its running
     maximum (the loading and the hold: the contact radius does not shrink, and the
     full contact model is the closed form there, up to its grid) are fitted by
-    `jaxcontact._afm.lee_radok_fit` (times on a log grid of 20 over the span,
+    `jaxcontact._lee_radok.lee_radok_fit` (times on a log grid of 20 over the span,
     coefficients > 0, the fit's `weights`); the apparent moduli (compliances) are
     converted with the sphere's radius `R` and `poisson`:
     `G = 3 (1 - nu) G_app / (8 sqrt(R))` (relaxation, displacement control),
@@ -399,7 +399,7 @@ def lee_radok_start(data: IndentationData, scene_template: Scene, n_terms: int, 
     **Raises:** `ValueError` without a `jc.Sphere` indenter, without both force and
     depth in `data`, or where no set of times gives positive coefficients.
     """
-    from ._afm import lee_radok_fit
+    from ._lee_radok import lee_radok_fit
 
     if not isinstance(scene_template.indenter, Sphere):
         raise ValueError("init='lee-radok' needs a jc.Sphere indenter")

@@ -42,29 +42,29 @@ class _Controls(eqx.Module):
 def default_solver(controls: _Controls, *, rtol=None, max_steps=2000, max_rounds=100,
                    resync_every=25, precondition=True) -> AbstractStepSolver:
     """The step solver `jc.solve` compiles when none is given, from what the scene
-    needs: `Rounds` without a coupled tangential solve (one round is exact);
-    `Fallback(JointPCG(), Rounds())` with one, the rounds started where the joint
-    iteration gave up (it does on contacts of a few cells: Spence's second load
-    stage at 45 cells per radius). The load root search of `robust_solver` is
-    compiled only for a concrete solution that still has a failed step."""
+    needs: `Rounds` without a coupled tangential solve (one round is exact); `JointPCG`
+    with one. The fallbacks of `robust_solver` are compiled only for a concrete
+    solution that still has a failed step."""
     rounds = Rounds(rtol=rtol, max_steps=max_steps, max_rounds=max_rounds,
                     resync_every=resync_every, precondition=precondition)
     if controls.nd == 0 or not controls.coupled:
         return rounds
-    joint = JointPCG(rtol=rtol, max_steps=max_steps, resync_every=resync_every,
-                     precondition=precondition)
-    return Fallback(joint, rounds)
+    return JointPCG(rtol=rtol, max_steps=max_steps, resync_every=resync_every,
+                    precondition=precondition)
 
 
 def robust_solver(controls: _Controls, **options) -> AbstractStepSolver | None:
-    """The default solver falling back in turn, under tangential load control, on
-    `LoadByDisplacement(JointPCG())` (a root search on the displacement); `None` when
-    no direction is load-controlled (nothing more to try). `options`: those of
-    `default_solver`. Two more copies of the joint solver: ~2x the compile time."""
-    solver = default_solver(controls, **options)
-    if not (controls.coupled and any(controls.tangential_force_control)):
+    """What a concrete coupled solution with a failed step is solved again with, whole:
+    the default `JointPCG` falling back on `Rounds` (started where the joint iteration
+    gave up) and, under tangential load control, on `LoadByDisplacement(JointPCG())`
+    (a root search on the displacement); `None` without a coupled tangential solve
+    (nothing more to try). `options`: those of `default_solver`."""
+    joint = default_solver(controls, **options)
+    if not isinstance(joint, JointPCG):
         return None
-    joint = solver.primary
+    solver = Fallback(joint, Rounds(**options))
+    if not any(controls.tangential_force_control):
+        return solver
     return Fallback(solver, LoadByDisplacement(joint))
 
 
@@ -275,11 +275,11 @@ def solve(
     - `solver`: the step solver, an object (`jc.JointPCG()`, `jc.Rounds()`,
       `jc.Fallback(primary, secondary)`, `jc.LoadByDisplacement(solver)`, ...). `None`
       (default): chosen from the scene (`default_solver`): the rounds (exact in one)
-      without coupling; with coupling the joint iteration, falling back on the rounds.
-      A concrete coupled solution under tangential load control that still has a
-      failed step is solved again, whole, with a root search over the displacement
-      added (`robust_solver`), compiled only then; under `jit`, `vmap` or `grad` there
-      is no second solve (the flags, or `throw`, report the failure).
+      without coupling; with coupling the joint iteration. A concrete coupled
+      solution that still has a failed step is solved again, whole, with the rounds
+      as a fallback and, under tangential load control, a root search over the
+      displacement (`robust_solver`), compiled only then; under `jit`, `vmap` or
+      `grad` there is no second solve (the flags, or `throw`, report the failure).
     - `rtol`, `max_steps`, `max_rounds`, `resync_every`, `precondition`: options of
       the default solver (only without `solver`; a solver object carries its own):
       relative tolerance of every contact solve (`None`: `1e-8` in float64, `1e-5` in

@@ -1,0 +1,88 @@
+"""The closed-form Lee-Radok fit of a loading-and-hold indentation curve (a sphere):
+the start of `jc.fit_prony(init="lee-radok")` and the viscoelastic contact point of
+`jc.read_afm`. Plain NumPy; no contact solve."""
+
+import numpy as np
+
+
+def _lee_radok_columns(t, drive, taus):
+    """`(n, 1 + m)` columns of the closed-form Lee-Radok response to a piecewise-linear
+    `drive` (zero at `t[0]`): the drive itself and, for each time `tau` of `taus`,
+    `h(t) = int_0^t exp(-(t - s) / tau) d drive(s)` (exact for piecewise-linear
+    input; one recursion over the samples, vectorised over `taus`)."""
+    dt = np.diff(t)[:, None]
+    e = np.exp(-dt / taus[None, :])
+    inc = np.diff(drive)[:, None] / dt * taus[None, :] * (1 - e)
+    h = np.zeros((t.size, taus.size))
+    for k in range(1, t.size):
+        h[k] = e[k - 1] * h[k - 1] + inc[k - 1]
+    return np.concatenate([drive[:, None], h], axis=1)
+
+
+def lee_radok_fit(time, force, depth, mode, *, arms=2, n_tau=20, start=0, weights=None,
+                  positive=False):
+    """The best closed-form Lee-Radok model of a loading-and-hold curve, with `arms`
+    relaxation (creep) times on a log grid of `n_tau` times between the smallest
+    sample step (at least 1e-3 of the span) and the span.
+
+    Valid while the contact radius does not shrink (loading and hold). For a sphere,
+    with `u = depth^(3/2)`:
+
+    - relaxation (depth imposed): `F(t) = int_0^t G_app(t - s) du(s)`,
+      `G_app = c_0 + sum_i c_i exp(-t / tau_i)`;
+    - creep (force imposed): `u(t) = int_0^t J_app(t - s) dF(s)`,
+      `J_app = c_0 + sum_i c_i (1 - exp(-t / tau_i))`.
+
+    Both are linear in the `c` (apparent moduli or compliances: `G_app = 8 sqrt(R)
+    G / (3 (1 - nu))`, `J_app = 3 (1 - nu) J / (8 sqrt(R))`), so each set of times
+    costs one small linear least squares (normal equations from one Gram matrix).
+
+    **Arguments:** `time`, `force`, `depth`: `(n,)`, zero at the contact; `mode`:
+    `"relaxation"` or `"creep"`; `start`: the residual counts from this sample on
+    (the model runs from the first); `weights`: `(n,)` sample weights (default 1);
+    `positive`: only sets of times whose `c` are all > 0 (a valid series).
+
+    **Returns:** `(misfit, taus, c)`: the relative weighted misfit
+    `mean((w (model - target))^2) / mean((w target)^2)` over the counted samples, the
+    `(arms,)` times and the `(arms + 1,)` coefficients `c_0, c_1..` (`inf`, `None`,
+    `None` when no set qualifies).
+    """
+    t = np.asarray(time, float)
+    u = np.clip(np.asarray(depth, float), 0.0, None) ** 1.5
+    f = np.asarray(force, float)
+    span, first = float(t[-1] - t[0]), float(np.min(np.diff(t)))
+    taus = np.geomspace(max(first, 1e-3 * span), span, n_tau)
+    if mode == "relaxation":
+        cols, target = _lee_radok_columns(t, u, taus), f
+    else:
+        cols = _lee_radok_columns(t, f, taus)
+        cols = np.concatenate([cols[:, :1], cols[:, :1] - cols[:, 1:]], axis=1)
+        target = u
+    w = np.ones(t.shape) if weights is None else np.asarray(weights, float)
+    cols, target = cols[start:] * w[start:, None], target[start:] * w[start:]
+    scale = max(float(np.sqrt(np.mean(target**2))), 1e-300)
+    cols, target = cols / scale, target / scale
+    gram, rhs, tt = cols.T @ cols, cols.T @ target, float(target @ target)
+    import itertools
+
+    best = (np.inf, None, None)
+    for combo in itertools.combinations(range(1, n_tau + 1), arms):
+        idx = (0, *combo)
+        a, b = gram[np.ix_(idx, idx)], rhs[list(idx)]
+        try:
+            c = np.linalg.solve(a + 1e-12 * np.trace(a) * np.eye(len(idx)), b)
+        except np.linalg.LinAlgError:  # pragma: no cover - degenerate grid
+            continue
+        if positive and not np.all(c > 0):
+            continue
+        value = max((tt - 2 * c @ b + c @ a @ c) / target.size, 0.0)
+        if value < best[0]:
+            best = (value, taus[np.asarray(combo) - 1], c)
+    return best
+
+
+def lee_radok_misfit(time, force, depth, mode, *, arms=2, n_tau=20, start=0):
+    """The relative misfit of `lee_radok_fit` (any sign of the coefficients): the
+    contact point's objective in `read_afm(..., contact="viscoelastic")`."""
+    return lee_radok_fit(time, force, depth, mode, arms=arms, n_tau=n_tau,
+                         start=start)[0]
