@@ -5,8 +5,8 @@ a `steps` argument, and solved in a FRESH process per (preset, solver) so that n
 compiled program is shared: the first call (tracing + XLA compilation + the solve)
 and a second call on the same scene (the solve alone). The solvers compared:
 
-- `default`: what `jc.solve` picks (coupled scenes: `Fallback(Fallback(JointPCG(),
-  Rounds()), LoadByDisplacement(JointPCG()))`);
+- `default`: what `jc.solve` picks (coupled scenes: `JointPCG()` since session 20;
+  `Fallback(JointPCG(), Rounds())` before, `compile_time_before.json` older still);
 - `joint`: `jc.JointPCG()` alone on coupled scenes (the default elsewhere).
 
 Usage::
