@@ -184,6 +184,59 @@ def conv_floor(jcase: JC, n: int, repeats: int = 5) -> float:
     return hertz.convolution_times(jcase.op, spectrum, n, jcase.dtype, repeats)["naive"]
 
 
+def iteration_cost(n: int, steps=(10, 40), repeats: int = 5) -> dict:
+    """Marginal cost of one jaxcontact CG iteration, float64, on this problem: solves
+    with rtol 1e-30 (never met) stopped at `steps` iterations, interleaved, best of
+    `repeats`; (t_long - t_short) / (long - short). Also the eager overhead of
+    `jc.solve_normal` (the argument checks and contact estimate) against calling its
+    jitted core directly, and one padded convolution in the same process."""
+    from jaxcontact import _solve_normal as sn
+
+    jcase = JC(n, jnp.float64, gap_field(n))
+    solvers = {k: jc.PolonskyKeer(rtol=1e-30, max_steps=k) for k in steps}
+    times = {k: [] for k in steps}
+    direct = []
+    its = {}
+    g, mat = jcase.grid, jcase.material
+    h = jcase.surface.gap(g)
+
+    def core(solver):
+        return sn._solve(jcase.op, h, mat.instantaneous_compliance, mat.poisson,
+                         jcase.force, True, solver)
+
+    for k in steps:  # compile
+        s = jc.solve_normal(g, jcase.surface, mat, force=jcase.force,
+                            solver=solvers[k], operator=jcase.op)
+        its[k] = int(s.iterations)
+        core(solvers[k]).pressure.block_until_ready()
+    loads = []
+    for _ in range(repeats):
+        loads.append(os.getloadavg()[0])
+        for k in steps:
+            t = time.perf_counter()
+            jc.solve_normal(g, jcase.surface, mat, force=jcase.force,
+                            solver=solvers[k], operator=jcase.op
+                            ).pressure.block_until_ready()
+            times[k].append(time.perf_counter() - t)
+        t = time.perf_counter()
+        core(solvers[steps[-1]]).pressure.block_until_ready()
+        direct.append(time.perf_counter() - t)
+    lo, hi = steps
+    marginal = (min(times[hi]) - min(times[lo])) / (its[hi] - its[lo])
+    floor = conv_floor(jcase, n)
+    return {
+        "n": n, "dtype": "float64", "iterations": its,
+        "best_s": {k: min(v) for k, v in times.items()},
+        "times_s": times, "loadavg": loads,
+        "marginal_iteration_s": marginal,
+        "conv_naive_s": floor,
+        "marginal_iteration_over_conv_naive": marginal / floor,
+        "fixed_cost_s": min(times[lo]) - its[lo] * marginal,
+        "jitted_core_best_s": min(direct),
+        "eager_overhead_s": min(times[hi]) - min(direct),
+    }
+
+
 def run_n(n: int, tols, repeats: int, peer: Peer | None, tmp: Path, log) -> dict:
     h = gap_field(n)
     out: dict = {"n": n, "notes": []}
@@ -340,7 +393,16 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default=str(HERE / "results" / "aspher_peer.json"))
     ap.add_argument("--summarise", metavar="JSON",
                     help="only (re)compute the equal-error summary of a results file")
+    ap.add_argument("--iteration-cost", metavar="JSON",
+                    help="only measure one CG iteration's marginal cost at the first "
+                         "--n and store it in this results file")
     args = ap.parse_args(argv)
+    if args.iteration_cost:
+        res = json.loads(Path(args.iteration_cost).read_text())
+        res["iteration_cost"] = iteration_cost(args.n[0])
+        Path(args.iteration_cost).write_text(json.dumps(res, indent=1))
+        print(json.dumps(res["iteration_cost"], indent=1))
+        return 0
     if args.summarise:
         res = json.loads(Path(args.summarise).read_text())
         res["summary"] = summarise(res)
