@@ -1,4 +1,5 @@
-"""Peer contact solvers for `benchmarks/run.py`: Tamaas and ContactMechanics.
+"""Peer contact solvers for `benchmarks/run.py` (Tamaas, ContactMechanics) and for
+`benchmarks/aspher_peer.py` (ASPHER).
 
 This file is run by a Python that has the peers installed (they need not share an
 environment with jaxcontact: `pip install ".[peers]"`, or a separate virtual
@@ -36,6 +37,30 @@ timed), the peak pressure [stress], the number of cells in contact (pressure > 0
 the rigid-body approach [length] (ContactMechanics only: Tamaas is periodic and its
 mean displacement is a gauge), the iteration count where the peer reports it, and the
 process's peak resident memory (`ru_maxrss`). `{"cmd": "quit"}` ends the server.
+
+ASPHER (`pip install aspher`, built from its sdist; it needs Eigen) takes a different
+request, since it is posed in its own units (unit square domain, E* = 1, mean pressure
+`p_nominal` = W / (L^2 E*), initial gap in units of L) on an arbitrary gap field::
+
+    {"code": "aspher", "n": 256, "gap_file": "/path/gap.npy" ((n, n), units of L),
+     "p_nominal": W / (L^2 E*), "tol": 1e-6, "mode": "plain" | "nested",
+     "precision": "double" | "single", "backend": "fft" (default) | "h2",
+     "coarsest": 64, "repeats": 1, "save": "/path/to/pressure.npy" (optional)}
+
+- `mode: "plain"`: `aspher.ContactSolver(n, backend=...)` (built once per (n, backend),
+  untimed) and `.solve(gap, p_nominal, tol, precond="fourier")`: Polonsky-Keer CG
+  with its |q| Fourier preconditioner on the n x n grid, from its own initial state.
+  Double precision only.
+- `mode: "nested"`: `aspher.solve_nested(grid_size=n, gap, p_nominal, backend=...,
+  coarsest=..., tol, precision="double" | "float")`: the nested-grid (cascadic)
+  solve, coarsest -> n; it builds its operators inside the call, so they are timed.
+  `precision: "single"` is ASPHER's float mode with double reductions; it cannot
+  reach a tolerance below its `float_floor` (2e-6), so it runs with
+  `allow_tolerance_relaxation=True` and the answer records `effective_tol`.
+
+`backend: "fft"` is the exact zero-padded Love-kernel convolution (jaxcontact's
+discretisation); ASPHER's default `"h2"` is a matrix-free approximation. The saved
+pressure is in ASPHER's units (of E*), shape (n, n).
 """
 
 from __future__ import annotations
@@ -79,6 +104,14 @@ def probe() -> dict:
             "available": False,
             "error": f"{type(exc).__name__}: {exc}",
         }
+    try:
+        import importlib.metadata as md
+
+        import aspher  # noqa: F401
+
+        out["aspher"] = {"available": True, "version": md.version("aspher")}
+    except Exception as exc:
+        out["aspher"] = {"available": False, "error": f"{type(exc).__name__}: {exc}"}
     return out
 
 
@@ -200,8 +233,118 @@ class TamaasHertz:
 PEERS = {"contactmechanics": ContactMechanicsHertz, "tamaas": TamaasHertz}
 
 
+class AspherSolve:
+    """ASPHER on a given gap field, in its units (unit domain, E* = 1)."""
+
+    name = "aspher"
+
+    def __init__(self):
+        import aspher
+
+        self.aspher = aspher
+        self.solvers: dict = {}  # (n, backend) -> ContactSolver, built untimed
+        self.gaps: dict = {}  # gap_file -> flattened float64 gap
+
+    def gap(self, path: str, n: int) -> np.ndarray:
+        if path not in self.gaps:
+            g = np.asarray(np.load(path), dtype=np.float64)
+            if g.shape != (n, n):
+                raise ValueError(f"gap {path} has shape {g.shape}, expected {(n, n)}")
+            self.gaps[path] = np.ascontiguousarray(g.ravel())
+        return self.gaps[path]
+
+    def solver(self, n: int, backend: str):
+        key = (n, backend)
+        if key not in self.solvers:
+            self.solvers.clear()  # one operator at a time
+            self.solvers[key] = self.aspher.ContactSolver(grid_size=n, backend=backend)
+        return self.solvers[key]
+
+    def solve(self, req) -> dict:
+        n = int(req["n"])
+        gap = self.gap(req["gap_file"], n)
+        p_nom, tol = float(req["p_nominal"]), float(req["tol"])
+        mode = req.get("mode", "plain")
+        precision = req.get("precision", "double")
+        backend = req.get("backend", "fft")
+        max_iter = int(req.get("max_iter", 20000))
+        if mode == "plain":
+            if precision != "double":
+                raise ValueError(
+                    "ASPHER's ContactSolver.solve is double precision only")
+            s = self.solver(n, backend)
+            t = time.perf_counter()
+            res = s.solve(gap, p_nominal=p_nom, tol=tol, max_iter=max_iter,
+                          precond="fourier")
+            dt = time.perf_counter() - t
+        elif mode == "nested":
+            kw = {}
+            if precision == "single":
+                kw = {"precision": "float", "allow_tolerance_relaxation": True}
+            elif precision == "double":
+                kw = {"precision": "double"}
+            else:
+                raise ValueError(
+                    f"precision must be double or single, got {precision!r}")
+            t = time.perf_counter()
+            res = self.aspher.solve_nested(
+                grid_size=n, gap=gap, p_nominal=p_nom, backend=backend,
+                coarsest=int(req.get("coarsest", 64)), tol=tol, max_iter=max_iter,
+                **kw)
+            dt = time.perf_counter() - t
+        else:
+            raise ValueError(f"mode must be plain or nested, got {mode!r}")
+        p = np.asarray(res.pressure, dtype=np.float64).reshape(n, n)
+        return {
+            "time_s": dt,
+            "pressure": p,
+            "iterations": int(res.iterations),
+            "converged": bool(res.converged),
+            "status": str(res.status),
+            "fw_error": float(res.fw_error),
+            "effective_tol": float(res.effective_tol),
+            "mean_pressure": float(res.mean_pressure),
+            "contact_area": float(res.contact_area),
+        }
+
+
+def handle_aspher(req, cache: dict) -> dict:
+    t0 = time.perf_counter()
+    if "aspher" not in cache:
+        cache.clear()
+        cache["aspher"] = AspherSolve()
+    peer = cache["aspher"]
+    if req.get("mode", "plain") == "plain":
+        peer.solver(int(req["n"]), req.get("backend", "fft"))
+    setup_s = time.perf_counter() - t0
+    times, out = [], None
+    for _ in range(max(1, int(req.get("repeats", 1)))):
+        out = peer.solve(req)
+        times.append(out.pop("time_s"))
+    p = out.pop("pressure")
+    if req.get("save"):
+        np.save(req["save"], p)
+    return {
+        "code": "aspher",
+        "n": int(req["n"]),
+        "tol": float(req["tol"]),
+        "mode": req.get("mode", "plain"),
+        "precision": req.get("precision", "double"),
+        "backend": req.get("backend", "fft"),
+        "times_s": times,
+        "setup_s": setup_s,
+        "peak_pressure": float(p.max()),
+        "contact_cells": int(np.count_nonzero(p > 0)),
+        "finite": bool(np.isfinite(p).all()),
+        "maxrss_mib": _maxrss_mib(),
+        **out,
+    }
+
+
 def handle(req, cache: dict) -> dict:
     code = req["code"]
+    if code == "aspher":
+        return handle_aspher(req, cache)
     key = (
         code,
         int(req["n"]),
