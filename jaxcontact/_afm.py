@@ -281,7 +281,7 @@ def contact_point(travel, force, *, baseline="constant", exponent=1.5, grid=200)
     return x0 + uc * xs, np.asarray(out)
 
 
-def _refine_contact(time, f_rel, height, code, ic, k, mode, metadata, *,
+def _refine_contact(time, f_rel, height, code, ic, k, mode, *,
                     max_candidates=60, max_hold=1000):
     """`(index, offset, note)`: the contact sample near `ic` that minimises
     `lee_radok_misfit` (2 arms) of the curve zeroed there, and the force above the
@@ -289,7 +289,6 @@ def _refine_contact(time, f_rel, height, code, ic, k, mode, metadata, *,
     its own contact; the misfit is counted over the same samples for all (the
     approach from the last candidate on, and the hold, thinned to at most `max_hold`
     samples), so that a later contact is not rewarded for dropping samples."""
-    del metadata
     app = np.flatnonzero(code == 0)
     after = app[app >= ic]
     w = max(5, after.size // 4)
@@ -302,14 +301,12 @@ def _refine_contact(time, f_rel, height, code, ic, k, mode, metadata, *,
     hold = np.flatnonzero(code == 1)
     hold = hold[:: max(1, -(-hold.size // max_hold))]
     best, best_value = ic, np.inf
-    values = []
     for j in candidates:
         idx = np.concatenate([app[app >= j], hold])
         f = f_rel[idx] - f_rel[j]
         d = (height[j] - height[idx]) - f / k
         value = lee_radok_misfit(time[idx] - time[j], f, d, mode, arms=2,
                                  start=int(np.sum(app[app >= j] < candidates[-1])))
-        values.append(value)
         if value < best_value:
             best, best_value = int(j), value
     if best in (candidates[0], candidates[-1]) and best != ic:
@@ -502,8 +499,11 @@ def read_afm(source, *, index=0, contact_index=None, baseline="constant",
             b = b + coef[2] * tr_all[idx]
         return b
 
+    # A tilted baseline (virtual deflection: a function of the base's position) is
+    # evaluated at every sample's own travel; a constant one is the same everywhere.
+    f_base = base(np.arange(time.size))
     # the depth from the piecewise fit's contact (for the mode of a hold)
-    depth_pl = (height[ic] - height) - (force - base(np.arange(time.size))) / k
+    depth_pl = (height[ic] - height) - (force - f_base) / k
     # -- Mode ---------------------------------------------------------------------------
     if mode is None:
         imaging = str(metadata.get("imaging mode", ""))
@@ -530,12 +530,8 @@ def read_afm(source, *, index=0, contact_index=None, baseline="constant",
                     "piecewise baseline + Hertz fit (Lin et al. 2007)")
     if contact == "viscoelastic" and contact_index is None:
         ic, offset, contact_note = _refine_contact(
-            time, force - base(np.arange(time.size)), height, code, ic, k, mode,
-            metadata)
+            time, force - f_base, height, code, ic, k, mode)
     f0 = float(base(ic)) + offset
-    # A tilted baseline (virtual deflection: a function of the base's position) is
-    # evaluated at every sample's own travel; a constant one is the same everywhere.
-    f_base = base(np.arange(time.size))
     f_rel = force - f_base - offset
     depth = (height[ic] - height) - f_rel / k
 

@@ -39,18 +39,17 @@ class _Controls(eqx.Module):
     tangential_force_control: tuple[bool, ...] = eqx.field(static=True)
 
 
-def default_solver(controls: _Controls, *, rtol=None, max_steps=2000, max_rounds=100,
-                   resync_every=25, precondition=True) -> AbstractStepSolver:
+def default_solver(controls: _Controls, **options) -> AbstractStepSolver:
     """The step solver `jc.solve` compiles when none is given, from what the scene
     needs: `Rounds` without a coupled tangential solve (one round is exact); `JointPCG`
     with one. The fallbacks of `robust_solver` are compiled only for a concrete
-    solution that still has a failed step."""
-    rounds = Rounds(rtol=rtol, max_steps=max_steps, max_rounds=max_rounds,
-                    resync_every=resync_every, precondition=precondition)
+    solution that still has a failed step. `options`: `rtol`, `max_steps`,
+    `max_rounds`, `resync_every`, `precondition` as given to `jc.solve` (those left
+    out: the solvers' own defaults)."""
     if controls.nd == 0 or not controls.coupled:
-        return rounds
-    return JointPCG(rtol=rtol, max_steps=max_steps, resync_every=resync_every,
-                    precondition=precondition)
+        return Rounds(**options)
+    return JointPCG(**{name: value for name, value in options.items()
+                       if name != "max_rounds"})
 
 
 def robust_solver(controls: _Controls, **options) -> AbstractStepSolver | None:

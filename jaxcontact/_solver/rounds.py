@@ -205,17 +205,14 @@ class Rounds(AbstractStepSolver):
                 stick=(p > 0) & (problem.friction > 0), sliding=jnp.array(False),
                 iterations=state.iterations, rounds=state.rounds,
                 residual=normal.residual, converged=normal.converged)
-        residual = jnp.maximum(normal.residual, tang.residual)
-        approach = normal.approach
+        approach, normal_residual = normal.approach, normal.residual
         if problem.coupled:
             # The normal conditions at the returned (p, q): the last normal solve saw
             # the shear before the last tangential solve (the same when `done`).
             setup = k.normal_setup.with_gap(k.h + k.uz_from_shear(state.shear))
             _, approach, normal_residual = setup.evaluate(normal.displacement, p)
-            residual = jnp.maximum(normal_residual, tang.residual)
-            converged = state.ok & (residual <= k.rtol)
-        else:
-            converged = state.ok
+        residual = jnp.maximum(normal_residual, tang.residual)
+        converged = state.ok & (residual <= k.rtol) if problem.coupled else state.ok
         contact = p > 0
         stick = tang.stick
         sliding = jnp.any(contact) & ~jnp.any(stick)
