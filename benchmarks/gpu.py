@@ -63,6 +63,7 @@ from gradients import make_loss  # noqa: E402
 
 RTOL = 1e-6
 TIGHT = 1e-10
+CASES = ("hertz", "rough", "coupled", "gradient", "sweep")
 MIN_ROUGH = 2 * K_HIGH + 1
 DTYPES = {"float64": jnp.float64, "float32": jnp.float32}
 
@@ -211,18 +212,23 @@ def main(argv=None) -> int:
     parser.add_argument("--sizes", type=int, nargs="+", default=None)
     parser.add_argument("--budget", type=float, default=420.0,
                         help="seconds after which the remaining cases are skipped")
+    parser.add_argument("--cases", nargs="+", default=list(CASES), choices=CASES,
+                        help="which groups of cases to run (default: all)")
     parser.add_argument("--out", default=str(HERE / "results" / "gpu.json"))
     args = parser.parse_args(argv)
     plan = dict(QUICK if args.quick else FULL)
     if args.sizes:
         plan["sizes"] = args.sizes
     start = time.perf_counter()
-    result = {"machine": machine(), "plan": plan, "quick": args.quick, "cases": [],
+    result = {"machine": machine(), "plan": plan, "quick": args.quick,
+              "groups": args.cases, "cases": [],
               "skipped": []}
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
 
     def record(name, fn):
+        if not set(name.split()[:2]) & set(args.cases):
+            return
         if time.perf_counter() - start > args.budget:
             result["skipped"].append(name)
             print(f"skipped {name} (budget)", flush=True)

@@ -255,7 +255,11 @@ class PolonskyKeer(AbstractStepSolver):
     def step(self, problem, k: NormalOperator, s: _NormalCGState) -> _NormalCGState:
         apply_fn, load_control, rtol = k.apply_fn, k.load_control, k.rtol
         p, u, g = s.p, s.u, s.g
-        contact = p > 0
+        overlap = (p <= 0) & (g < 0)
+        if k.precondition is None:
+            contact = p > 0
+        else:  # penetrating cells join the active set of this step's direction
+            contact = (p > 0) | overlap
         n_contact = jnp.sum(contact)
         gc = jnp.where(contact, g, 0)
         if k.precondition is None:
@@ -265,7 +269,10 @@ class PolonskyKeer(AbstractStepSolver):
             if load_control:  # keep the load: a mean-free direction on the contact
                 z = jnp.where(contact, z - _safe_div(jnp.sum(z), n_contact), 0)
         g_norm = jnp.sum(gc * z)  # (g, M g); (g, g) without preconditioner
-        beta = jnp.where(s.restart, 0.0, _safe_div(g_norm, s.g_norm_old))
+        restart = s.restart
+        if k.precondition is not None:
+            restart = restart | jnp.any(overlap)
+        beta = jnp.where(restart, 0.0, _safe_div(g_norm, s.g_norm_old))
         t = jnp.where(contact, z + beta * s.t, 0)
         r_raw = apply_fn(t)
         r = r_raw
@@ -277,12 +284,11 @@ class PolonskyKeer(AbstractStepSolver):
         clipped = p_step < 0
         p_new = jnp.maximum(p_step, 0)
         # Re-entry: cells out of contact that penetrate get pressure.
-        overlap = (~contact) & (g < 0)
         if k.precondition is None:
             tau_overlap = jnp.where(tau > 0, tau, 1 / k.k00)
-        else:  # tau is in units of the preconditioned direction: the local compliance
-            tau_overlap = 1 / k.k00
-        p_new = jnp.where(overlap, p_new - tau_overlap * g, p_new)
+            p_new = jnp.where(overlap, p_new - tau_overlap * g, p_new)
+        else:  # those the direction did not lift: the local closure
+            p_new = jnp.where(overlap & (p_new <= 0), -g / k.k00, p_new)
         changed = jnp.any(clipped & contact) | jnp.any(overlap)
         if load_control:
             p_new = jnp.where(jnp.sum(p_new) > 0, p_new, s.p_start)
