@@ -297,7 +297,8 @@ def _stack(trees):
 
 
 def fit_prony_batch(data, scene_template: Scene, n_terms: int = 2, *, weights=None,
-                    lm_steps: int = 100, **options) -> list:
+                    lm_steps: int = 100, client=None, chunk_size: int | None = None,
+                    **options) -> list:
     """Fit a Prony series to each of many curves of one shape at once: the
     Levenberg-Marquardt solves of all curves run as ONE compiled, vmapped program.
 
@@ -315,6 +316,16 @@ def fit_prony_batch(data, scene_template: Scene, n_terms: int = 2, *, weights=No
     - `**options`: any other keyword of `jc.fit_prony` (`init`: `None`,
       `"lee-radok"`, or a sequence of one `jc.Prony` per curve), except `optimiser`
       (always `"lm"`).
+    - `client`: a `dask.distributed.Client` (the `dask` extra): the curves are split
+      into chunks of `chunk_size`, each chunk fitted by this function on a worker (one
+      batched LM per chunk), the fits returned in order. As for `jc.sweep(...,
+      client=...)`: a chunk whose worker dies is resubmitted, the workers turn on
+      x64 for 64-bit data and copy this process's compilation-cache settings. A
+      shorter last chunk compiles its own batched program (it is not padded: a
+      padded curve would be fitted for nothing): prefer a `chunk_size` that divides
+      the number of curves.
+    - `chunk_size`: curves per chunk (a positive integer); default: the curves spread
+      evenly over the workers connected now. Only with `client`.
 
     **Returns:** a list of `jc.PronyFit`, one per curve, each as `jc.fit_prony(...,
     optimiser="lm")` would return it: the same start (from each curve's data), the
@@ -347,6 +358,14 @@ def fit_prony_batch(data, scene_template: Scene, n_terms: int = 2, *, weights=No
     if len(weights) != len(data) or len(inits) != len(data):
         raise ValueError(f"fit_prony_batch: weights and init need one entry per curve "
                          f"({len(data)})")
+    if client is not None:
+        from ._sweep_dask import check_client, fit_on_client
+
+        check_client(client, chunk_size, "jc.fit_prony_batch")
+        return fit_on_client(data, scene_template, n_terms, weights, inits, lm_steps,
+                             options, client, chunk_size)
+    if chunk_size is not None:
+        raise ValueError(f"fit_prony_batch: chunk_size={chunk_size!r} needs a client")
 
     def one(i, lm):
         return fit_prony(data[i], scene_template, n_terms, weights=weights[i],

@@ -132,7 +132,7 @@ def _run(arrays, fixed, dynamic, static, options, mesh):
 
 
 def sweep(scene: Scene, /, *, solve_options: dict | None = None, devices=None,
-          **batched) -> Solution:
+          client=None, chunk_size: int | None = None, **batched) -> Solution:
     """Solve a batch of variants of `scene`: `jax.vmap` over `jc.solve`, compiled once
     for the batch and sharded over devices.
 
@@ -156,6 +156,20 @@ def sweep(scene: Scene, /, *, solve_options: dict | None = None, devices=None,
       batch is padded to a multiple of their number by repeating its last entry, put on
       a 1-D mesh with `NamedSharding`, and each device solves its slice with `vmap`
       (`shard_map`: the devices do not wait for each other inside a solve).
+      With `client`, each worker uses its own devices: leave `devices` out.
+    - `client`: a `dask.distributed.Client` (needs the `dask` extra:
+      `pip install "jaxcontact[dask]"`). The batch is split into chunks of
+      `chunk_size` members, each chunk solved by this same function on a worker (its
+      program compiled once per worker process, or loaded from the persistent
+      compilation cache where this process has turned it on with
+      `jc.enable_compilation_cache` and the workers see the same folder), and the
+      results concatenated along the batch axis: the same `jc.Solution` as without a
+      client. A chunk whose worker dies is resubmitted by Dask. The workers turn on
+      `jax_enable_x64` themselves where this process has it on.
+    - `chunk_size`: members per chunk (a positive integer; the last chunk is padded
+      to it by repeating its last member, so every chunk runs one program shape).
+      Default: the batch spread evenly over the workers connected now. Only with
+      `client`.
 
     **Returns:** a `jc.Solution` whose every field has a leading batch axis `B` (then
     time, as for `jc.solve`). Entry `b` equals `jc.solve` of the scene with entry `b`
@@ -178,6 +192,17 @@ def sweep(scene: Scene, /, *, solve_options: dict | None = None, devices=None,
         raise ValueError("jc.sweep builds the operator once itself: leave 'operator' out "
                          "of solve_options")
     values, size = _parse(scene, batched)
+    if client is not None:
+        from ._sweep_dask import check_client, sweep_on_client
+
+        check_client(client, chunk_size, "jc.sweep")
+        if devices is not None:
+            raise ValueError("jc.sweep: devices and client exclude each other (each "
+                             f"worker shards over its own devices), got {devices!r}")
+        return sweep_on_client(scene, values, size, options, client, chunk_size)
+    if chunk_size is not None:
+        raise ValueError(f"jc.sweep: chunk_size={chunk_size!r} needs a client (the "
+                         "batch is only split into chunks for Dask workers)")
     devices = list(jax.devices() if devices is None else devices)
     if not devices:
         raise ValueError("jc.sweep: devices is empty")
