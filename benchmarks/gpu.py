@@ -85,7 +85,19 @@ def machine() -> dict:
         "jax": jax.__version__,
         "python": platform.python_version(),
         "date": datetime.datetime.now(datetime.timezone.utc).isoformat(),
+        "commit": _commit(),
     }
+
+
+def _commit() -> str:
+    """The checkout's commit (`unknown` where git or the .git folder is missing)."""
+    import subprocess
+
+    try:
+        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=HERE,
+                              capture_output=True, text=True, timeout=10).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
 
 
 def timed(fn, repeats: int) -> tuple[object, float, float]:
@@ -156,14 +168,17 @@ def coupled_case(preset: str, n: int, steps, dtype_name: str) -> dict:
     kwargs = dict(n=n, dtype=DTYPES[dtype_name])
     if steps is not None:
         kwargs["steps"] = steps
-    scene = jc.presets.build(preset, **kwargs)
-    sol, first, best = timed(lambda: jc.solve(scene, throw=False), 1)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")  # e.g. --quick's long steps: recorded
+        scene = jc.presets.build(preset, **kwargs)
+        sol, first, best = timed(lambda: jc.solve(scene, throw=False), 1)
     return {
         "case": "coupled", "preset": preset, "n": n, "dtype": dtype_name,
         "steps": int(scene.times.shape[0]), "first_call_s": first, "second_call_s": best,
         "iterations_total": int(jnp.sum(sol.iterations)),
         "converged": bool(jnp.all(sol.converged)),
         "stick_ratio_last": float(sol.stick_ratio[-1]),
+        "warnings": sorted({str(w.message)[:200] for w in caught}),
     }
 
 
