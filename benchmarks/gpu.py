@@ -25,7 +25,7 @@ the cases left once that much time has passed (recorded as skipped).
 
 Usage::
 
-    python benchmarks/gpu.py                      # on a GPU: < 8 minutes on one H100/H200
+    python benchmarks/gpu.py                  # on a GPU: < 8 minutes on one H100/H200
     python benchmarks/gpu.py --quick --out /tmp/gpu_quick.json
 
 Results: `benchmarks/results/gpu.json` (the device's name and kind in `machine`).
@@ -174,7 +174,8 @@ def coupled_case(preset: str, n: int, steps, dtype_name: str) -> dict:
         sol, first, best = timed(lambda: jc.solve(scene, throw=False), 1)
     return {
         "case": "coupled", "preset": preset, "n": n, "dtype": dtype_name,
-        "steps": int(scene.times.shape[0]), "first_call_s": first, "second_call_s": best,
+        "steps": int(scene.times.shape[0]), "first_call_s": first,
+        "second_call_s": best,
         "iterations_total": int(jnp.sum(sol.iterations)),
         "converged": bool(jnp.all(sol.converged)),
         "stick_ratio_last": float(sol.stick_ratio[-1]),
@@ -205,7 +206,8 @@ def sweep_case(n: int, steps: int, batch: int) -> dict:
         lambda: jc.sweep(scene, friction=friction), 1)
 
     def loop():
-        return [jc.solve(eqx.tree_at(lambda s: s.friction, scene, f), throw=False) for f in friction]
+        return [jc.solve(eqx.tree_at(lambda s: s.friction, scene, f), throw=False)
+                for f in friction]
 
     looped, first_loop, t_loop = timed(loop, 1)
     gap = max(float(jnp.max(jnp.abs(swept.tangential_force[b] - s.tangential_force)))
@@ -267,7 +269,8 @@ def main(argv=None) -> int:
             for dtype_name in ("float64", "float32"):
                 def run(kind=kind, n=n, dtype_name=dtype_name):
                     nonlocal reference
-                    row, reference = normal_case(kind, n, dtype_name, repeats, reference)
+                    row, reference = normal_case(kind, n, dtype_name, repeats,
+                                                 reference)
                     return row
                 record(f"normal {kind} {n} {dtype_name}", run)
     def coupled(preset, dtype_name):

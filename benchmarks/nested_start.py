@@ -1,0 +1,126 @@
+"""Would a cascadic (nested-grid) start pay for the normal CG? (issue 32, item 2)
+
+On `aspher_peer.py`'s rough sphere at each n of argv[1] (comma separated), float64,
+rtol 1e-6: `default` is `jc.solve_normal`'s path (the Hertzian guess on the fine grid);
+`nested <rtol>` solves on grids halved down to argv[2] (default 128; the gap averaged
+over 2 x 2 blocks), each from the previous level's pressure repeated 2 x 2, the coarse
+levels to <rtol>, the fine one to 1e-6. Prints iterations per level, best of 2 wall
+times after a compile, and the pressure's relative L2 error against a rtol 1e-10 solve
+from the default start. A measurement only: no library code uses a nested start.
+
+Usage: python benchmarks/nested_start.py 512,1024 128
+"""
+
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+import jax  # noqa: E402
+
+jax.config.update("jax_enable_x64", True)
+import equinox as eqx  # noqa: E402
+import jax.numpy as jnp  # noqa: E402
+
+import jaxcontact as jc  # noqa: E402
+import aspher_peer as ap  # noqa: E402
+from jaxcontact._solver.base import StepGuess, StepProblem  # noqa: E402
+from jaxcontact._solver.normal import hertzian_guess  # noqa: E402
+
+
+def coarsen(h):  # 2x2 block mean
+    n = h.shape[0]
+    return h.reshape(n // 2, 2, n // 2, 2).mean(axis=(1, 3))
+
+
+@eqx.filter_jit
+def solve_from(operator, h, compliance, poisson, target, solver, p0):
+    grid = operator.grid
+    nx, ny = grid.shape
+    dtype = h.dtype
+    problem = StepProblem(
+        operator,
+        compliance,
+        poisson,
+        jnp.zeros((), dtype),
+        h,
+        jnp.zeros((3, nx, ny), dtype),
+        target,
+        jnp.zeros((0,), dtype),
+        jnp.zeros((0, nx, ny), dtype),
+        0,
+        False,
+        True,
+        (),
+    )
+    st = solver.solve_state(problem, StepGuess(p0, jnp.zeros((0, nx, ny), dtype)))
+    return st.pressure, st.iterations, st.converged
+
+
+def hertz_p0(h, n, comp, nu):
+    g = jc.Grid((n, n), ap.SIZE)
+    return hertzian_guess(h, ap.FORCE, 2 / (comp * (1 - nu)), g.cell_area)
+
+
+comp = 1 / ap.SHEAR
+nu = ap.NU
+levels_min = int(sys.argv[2]) if len(sys.argv) > 2 else 128
+for n in [int(a) for a in sys.argv[1].split(",")]:
+    h = jnp.asarray(ap.gap_field(n))
+    ops = {}
+    hs = {}
+    m = n
+    hh = h
+    while m >= levels_min:
+        ops[m] = jc.HalfSpace(jc.Grid((m, m), ap.SIZE))
+        hs[m] = hh
+        m //= 2
+        hh = coarsen(hh)
+    solver = jc.PolonskyKeer(rtol=1e-6)
+    tight = jc.PolonskyKeer(rtol=1e-10)
+    ref, _, _ = solve_from(
+        ops[n], h, comp, nu, ap.FORCE, tight, hertz_p0(h, n, comp, nu)
+    )
+
+    def default():
+        return solve_from(
+            ops[n], h, comp, nu, ap.FORCE, solver, hertz_p0(h, n, comp, nu)
+        )
+
+    def nested(coarse_rtol):
+        ms = sorted(ops)
+        p = hertz_p0(hs[ms[0]], ms[0], comp, nu)
+        its = []
+        for m in ms:
+            s = solver if m == n else jc.PolonskyKeer(rtol=coarse_rtol)
+            if m != ms[0]:
+                p = jnp.repeat(jnp.repeat(p, 2, 0), 2, 1)
+            p, it, c = solve_from(ops[m], hs[m], comp, nu, ap.FORCE, s, p)
+            its.append(int(it))
+        return p, its, c
+
+    for name, fn in (
+        ("default", default),
+        ("nested 1e-4", lambda: nested(1e-4)),
+        ("nested 1e-6", lambda: nested(1e-6)),
+    ):
+        out = fn()
+        jax.block_until_ready(out[0])
+        best = 1e9
+        for _ in range(2):
+            t = time.perf_counter()
+            out = fn()
+            jax.block_until_ready(out[0])
+            best = min(best, time.perf_counter() - t)
+        p, it, c = out
+        err = float(jnp.linalg.norm(p - ref) / jnp.linalg.norm(ref))
+        print(
+            n,
+            name,
+            it if isinstance(it, list) else int(it),
+            bool(c),
+            f"{best:.3f} s",
+            f"err {err:.1e}",
+            flush=True,
+        )
