@@ -362,8 +362,8 @@ def fit_prony_batch(data, scene_template: Scene, n_terms: int = 2, *, weights=No
         from ._sweep_dask import check_client, fit_on_client
 
         check_client(client, chunk_size, "jc.fit_prony_batch")
-        return fit_on_client(data, scene_template, n_terms, weights, inits, lm_steps,
-                             options, client, chunk_size)
+        return fit_on_client(fit_prony_batch, data, scene_template, n_terms, weights,
+                             inits, lm_steps, options, client, chunk_size)
     if chunk_size is not None:
         raise ValueError(f"fit_prony_batch: chunk_size={chunk_size!r} needs a client")
 

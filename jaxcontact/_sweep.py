@@ -199,7 +199,7 @@ def sweep(scene: Scene, /, *, solve_options: dict | None = None, devices=None,
         if devices is not None:
             raise ValueError("jc.sweep: devices and client exclude each other (each "
                              f"worker shards over its own devices), got {devices!r}")
-        return sweep_on_client(scene, values, size, options, client, chunk_size)
+        return sweep_on_client(sweep, scene, values, size, options, client, chunk_size)
     if chunk_size is not None:
         raise ValueError(f"jc.sweep: chunk_size={chunk_size!r} needs a client (the "
                          "batch is only split into chunks for Dask workers)")

@@ -108,19 +108,20 @@ def _pad_chunk(tree, start: int, stop: int, length: int):
     return jax.tree.map(cut, tree)
 
 
-def _sweep_chunk(settings, scene, batched, solve_options):
-    """One chunk on a worker: `jc.sweep` (no client) of `scene` over `batched`
-    (`{keyword: value}`, NumPy leaves); its `jc.Solution`."""
+def _sweep_chunk(settings, sweep, scene, batched, solve_options):
+    """One chunk on a worker: `sweep` (`jc.sweep`, called without a client) of `scene`
+    over `batched` (`{keyword: value}`, NumPy leaves); its `jc.Solution`."""
     _apply_settings(settings)
-    from ._sweep import sweep
-
     return sweep(_to_jax(scene), solve_options=_to_jax(solve_options),
                  **_to_jax(batched))
 
 
-def sweep_on_client(scene, values: dict, size: int, options: dict, client, chunk_size):
-    """`jc.sweep`'s work on a Dask cluster. `values`: `{path: value}` as `_parse`
-    returns it (leading batch size `size`); `options`: the `jc.solve` keywords.
+def sweep_on_client(sweep, scene, values: dict, size: int, options: dict, client,
+                    chunk_size):
+    """`jc.sweep`'s work on a Dask cluster. `sweep`: `jc.sweep` itself (passed in, not
+    imported: this module is imported by `_sweep`, and functions travel to the workers
+    by reference); `values`: `{path: value}` as `_parse` returns it (leading batch size
+    `size`); `options`: the `jc.solve` keywords.
     **Returns:** the `jc.Solution` of the whole batch (JAX arrays, leading axis
     `size`)."""
     spans = _chunks(size, chunk_size, client)
@@ -134,7 +135,7 @@ def sweep_on_client(scene, values: dict, size: int, options: dict, client, chunk
         batched = {"__".join(path): _pad_chunk(value, start, stop, length)
                    for path, value in values.items()}
         futures.append(client.submit(
-            _sweep_chunk, settings, scene_np, batched, options_np,
+            _sweep_chunk, settings, sweep, scene_np, batched, options_np,
             key=f"jaxcontact-sweep-{token}-{k}"))
     # A worker that dies mid-chunk is replaced (its nanny restarts it) and the
     # scheduler resubmits the chunk, up to `distributed.scheduler.allowed-failures`
@@ -145,22 +146,23 @@ def sweep_on_client(scene, values: dict, size: int, options: dict, client, chunk
     return jax.tree.map(lambda *xs: jnp.concatenate(xs), *parts)
 
 
-def _fit_chunk(settings, data, scene_template, n_terms, weights, lm_steps, options):
-    """One chunk of curves on a worker: `jc.fit_prony_batch` (no client)."""
+def _fit_chunk(settings, fit_prony_batch, data, scene_template, n_terms, weights,
+               lm_steps, options):
+    """One chunk of curves on a worker: `fit_prony_batch` (`jc.fit_prony_batch`,
+    called without a client)."""
     _apply_settings(settings)
-    from ._fit import fit_prony_batch
-
     return fit_prony_batch(_to_jax(data), _to_jax(scene_template), n_terms,
                            weights=_to_jax(weights), lm_steps=lm_steps,
                            **_to_jax(options))
 
 
-def fit_on_client(data: list, scene_template, n_terms: int, weights: list,
-                  inits: list, lm_steps: int, options: dict, client,
+def fit_on_client(fit_prony_batch, data: list, scene_template, n_terms: int,
+                  weights: list, inits: list, lm_steps: int, options: dict, client,
                   chunk_size) -> list:
     """`jc.fit_prony_batch`'s work on a Dask cluster: the curves in chunks, each
-    chunk's batched Levenberg-Marquardt solve on a worker. **Returns:** the list of
-    `jc.PronyFit`, one per curve, in order."""
+    chunk's batched Levenberg-Marquardt solve on a worker by `fit_prony_batch` (passed
+    in, as `jc.sweep` is to `sweep_on_client`). **Returns:** the list of `jc.PronyFit`,
+    one per curve, in order."""
     spans = _chunks(len(data), chunk_size, client)
     settings = _worker_settings()
     scene_np, options_np = _to_numpy(scene_template), _to_numpy(options)
@@ -172,7 +174,8 @@ def fit_on_client(data: list, scene_template, n_terms: int, weights: list,
         # batch to avoid it.
         chunk_opts = dict(options_np, init=_to_numpy(inits[start:stop]))
         futures.append(client.submit(
-            _fit_chunk, settings, _to_numpy(data[start:stop]), scene_np, n_terms,
+            _fit_chunk, settings, fit_prony_batch, _to_numpy(data[start:stop]),
+            scene_np, n_terms,
             _to_numpy(weights[start:stop]), lm_steps, chunk_opts,
             key=f"jaxcontact-fit-{token}-{k}"))
     parts = client.gather(futures)  # resubmitted on a worker's death, as in the sweep
