@@ -445,6 +445,7 @@ def worker_peers(spec):
                     force=hertz.FORCE * scale,
                     operator=op,
                     solver=jc.PolonskyKeer(rtol=rtol),
+                    throw=False,
                 )
                 sol.pressure.block_until_ready()
                 return sol

@@ -113,6 +113,7 @@ def solve_normal(
     approach=None,
     solver: PolonskyKeer = PolonskyKeer(),
     operator: HalfSpace | None = None,
+    throw: bool = True,
 ) -> NormalSolution:
     """Frictionless indentation of a half-space by a rigid indenter (one elastic step).
 
@@ -132,6 +133,10 @@ def solve_normal(
     - `solver`: a `jc.PolonskyKeer` (tolerance, iteration bound).
     - `operator`: a prebuilt `jc.HalfSpace(grid)`, to reuse its kernel spectra across
       calls (built here if omitted).
+    - `throw`: `True` (default, as in `jc.solve`): raise a `ValueError` when the solve
+      does not reach its tolerance within `max_steps` (at once for concrete inputs, at
+      run time under `jit`/`vmap`/`grad`); `False`: return the solution with
+      `converged=False` (and its `residual`, `iterations`) instead.
 
     **Warns:** `jc.EdgeContactWarning` when the indenter is a `jc.Sphere` whose Hertz
     contact radius (or `sqrt(R delta)`) does not fit inside the grid less its outer ring
@@ -153,6 +158,8 @@ def solve_normal(
         raise TypeError(f"material must be a jaxcontact material, got {material!r}")
     if not isinstance(solver, PolonskyKeer):
         raise TypeError(f"solver must be a jc.PolonskyKeer, got {solver!r}")
+    if not isinstance(throw, bool):
+        raise TypeError(f"throw must be a bool, got {throw!r}")
     indenter = as_indenter(indenter)
     h = indenter.gap(grid)
     if h.shape != grid.shape:
@@ -190,7 +197,7 @@ def solve_normal(
     # on a float32 grid is cast).
     dtype = grid.size.dtype
     compliance = material.instantaneous_compliance
-    return _solve(
+    sol = _solve(
         operator,
         h.astype(dtype),
         compliance.astype(dtype),
@@ -199,3 +206,22 @@ def solve_normal(
         load_control,
         solver,
     )
+    return _raise_on_failure(sol, solver) if throw else sol
+
+
+_NOT_CONVERGED = ("jc.solve_normal did not converge: the contact residual stayed above "
+                  "the tolerance for max_steps iterations")
+
+
+def _raise_on_failure(sol: NormalSolution, solver: PolonskyKeer) -> NormalSolution:
+    """`sol`, or a `ValueError` if it did not converge: at once for a concrete
+    solution, at run time (`eqx.error_if`) under a transformation."""
+    if _validate.is_traced(sol):
+        return eqx.error_if(sol, ~sol.converged, _NOT_CONVERGED)
+    if not bool(sol.converged):
+        raise ValueError(
+            f"{_NOT_CONVERGED} (residual {float(sol.residual):.3g} after "
+            f"{int(sol.iterations)} of max_steps={solver.max_steps}, rtol="
+            f"{solver.tolerance(sol.pressure.dtype):.3g}); "
+            "jc.solve_normal(..., throw=False) returns the flags instead")
+    return sol

@@ -314,6 +314,36 @@ def test_unpadded_preconditioner_raised_to_the_continuum(width):
         assert its["raised"] + 3 <= its["wrapped"]
 
 
+
+def test_a_solve_that_does_not_converge_raises_unless_throw_is_false():
+    """As `jc.solve`: a normal solve that stops at `max_steps` above its tolerance
+    raises (naming the residual and the way out), at once for concrete inputs and at
+    run time under `jit`; `throw=False` returns it flagged. (A displacement-controlled
+    Hertz solve from p = 0 needs more than one iteration to reach rtol 1e-12.)"""
+    stuck = jc.PolonskyKeer(rtol=1e-12, max_steps=1)
+    grid = jc.Grid((32, 32), 4 * A_HZ)
+    material = jc.Elastic(G, NU)
+    delta = float(jc.Hertz(R, W, G, NU).approach)
+    with pytest.raises(ValueError, match=r"did not converge.*max_steps=1.*throw=False"):
+        jc.solve_normal(grid, jc.Sphere(R), material, approach=delta, solver=stuck)
+    sol = jc.solve_normal(grid, jc.Sphere(R), material, approach=delta, solver=stuck,
+                          throw=False)
+    assert not bool(sol.converged) and int(sol.iterations) == 1
+    assert float(sol.residual) > 1e-12
+
+    @jax.jit
+    def traced(d):
+        return jc.solve_normal(grid, jc.Sphere(R), material, approach=d,
+                               solver=stuck).approach
+
+    with pytest.raises(Exception, match="did not converge"):
+        jax.block_until_ready(traced(delta))
+    converges = jax.jit(lambda d: jc.solve_normal(
+        grid, jc.Sphere(R), material, approach=d).approach)
+    assert abs(float(converges(delta)) - delta) == 0.0  # the approach is prescribed
+    with pytest.raises(TypeError, match="throw must be a bool"):
+        jc.solve_normal(grid, jc.Sphere(R), material, approach=delta, throw="no")
+
 @pytest.mark.slow
 def test_rough_sphere_from_the_hertzian_guess_converges_on_a_fine_grid():
     """The rough sphere of benchmarks/aspher_peer.py at 1024^2 (about 4 % of the grid
