@@ -20,12 +20,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import jax  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
-import equinox as eqx  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 
 import jaxcontact as jc  # noqa: E402
 import aspher_peer as ap  # noqa: E402
-from jaxcontact._solver.base import StepGuess, StepProblem  # noqa: E402
+from jaxcontact._solve_normal import _solve  # noqa: E402
 from jaxcontact._solver.normal import hertzian_guess  # noqa: E402
 
 
@@ -34,28 +33,11 @@ def coarsen(h):  # 2x2 block mean
     return h.reshape(n // 2, 2, n // 2, 2).mean(axis=(1, 3))
 
 
-@eqx.filter_jit
 def solve_from(operator, h, compliance, poisson, target, solver, p0):
-    grid = operator.grid
-    nx, ny = grid.shape
-    dtype = h.dtype
-    problem = StepProblem(
-        operator,
-        compliance,
-        poisson,
-        jnp.zeros((), dtype),
-        h,
-        jnp.zeros((3, nx, ny), dtype),
-        target,
-        jnp.zeros((0,), dtype),
-        jnp.zeros((0, nx, ny), dtype),
-        0,
-        False,
-        True,
-        (),
-    )
-    st = solver.solve_state(problem, StepGuess(p0, jnp.zeros((0, nx, ny), dtype)))
-    return st.pressure, st.iterations, st.converged
+    """`jc.solve_normal`'s jitted load-controlled solve started from `p0`:
+    (pressure, iterations, converged)."""
+    sol = _solve(operator, h, compliance, poisson, target, True, solver, p0)
+    return sol.pressure, sol.iterations, sol.converged
 
 
 def hertz_p0(h, n, comp, nu):

@@ -77,7 +77,9 @@ class NormalSolution(eqx.Module):
 
 
 @eqx.filter_jit
-def _solve(operator, h, compliance, poisson, target, load_control, solver):
+def _solve(operator, h, compliance, poisson, target, load_control, solver, p0=None):
+    """The jitted solve; `p0`: the starting pressure, default the Hertzian guess under
+    load control and zero (the local interference) under displacement control."""
     grid = operator.grid
     nx, ny = grid.shape
     dtype = h.dtype
@@ -85,10 +87,11 @@ def _solve(operator, h, compliance, poisson, target, load_control, solver):
         operator, compliance, poisson, jnp.zeros((), dtype), h,
         jnp.zeros((3, nx, ny), dtype), target, jnp.zeros((0,), dtype),
         jnp.zeros((0, nx, ny), dtype), 0, False, load_control, ())
-    p0 = jnp.zeros_like(h)  # displacement control: the local interference
-    if load_control:
-        effective_modulus = 2 / (compliance * (1 - poisson))
-        p0 = hertzian_guess(h, target, effective_modulus, grid.cell_area)
+    if p0 is None:
+        p0 = jnp.zeros_like(h)  # displacement control: the local interference
+        if load_control:
+            effective_modulus = 2 / (compliance * (1 - poisson))
+            p0 = hertzian_guess(h, target, effective_modulus, grid.cell_area)
     state = solver.solve_state(problem, StepGuess(p0, jnp.zeros((0, nx, ny), dtype)))
     return NormalSolution(
         pressure=state.pressure,
