@@ -246,7 +246,12 @@ class Scene(eqx.Module):
       one quasi-static loading path: the friction state carries over.
     - `normal`: `jc.Force(W)` (load control) or `jc.Displacement(delta_z)`.
     - `x`, `y`: tangential inputs, `jc.Force(F)` or `jc.Displacement(delta)`, or `None`
-      (no tangential input: the tangential force is zero in that direction).
+      (no tangential input). A direction with no input that is solved (y under
+      `coupling="full"`, x under any coupling) is held: its rigid tangential
+      displacement is zero, as CONTACT poses it (its F = 1: F_x and the y shift given);
+      give `jc.Force(0.0)` for an indenter free to move in it. A direction that is not solved (y under `"none"` or
+      `"x"`) carries no shear. On a scene symmetric about that direction's axis (a
+      sphere loaded along x) the two are the same solution.
     - `friction`: Coulomb friction coefficient `mu >= 0`.
     - `coupling`: `"none"` (pressure and shear independent), `"x"` (semi-coupled: `p`
       and `q_x` interact, `q_y = 0`), or `"full"` (`p`, `q_x`, `q_y` all interact).
@@ -453,13 +458,15 @@ def normal_targets(scene: Scene, runtime_checks: bool = True):
 
 
 def tangential_targets(scene: Scene, nd: int):
-    """`(nt, nd)` targets and the per-direction force-control flags."""
+    """`(nt, nd)` targets and the per-direction force-control flags. A solved
+    direction with no input is held (displacement control at zero): it adds no load
+    to meet, so no root search and no gross-sliding test run on it."""
     programs = (scene.x, scene.y)[:nd]
     values, force_control = [], []
     for program in programs:
         if program is None:
             values.append(jnp.zeros_like(scene.times))
-            force_control.append(True)
+            force_control.append(False)
         else:
             values.append(program.values(scene.times))
             force_control.append(isinstance(program, Force))

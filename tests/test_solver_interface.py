@@ -207,7 +207,7 @@ def test_no_sliding_flag_without_friction_concrete_or_traced():
 def test_incompressible_coupled_scene_solves_as_uncoupled(coupling):
     """nu = 0.5: the normal-tangential blocks vanish (they scale with 1 - 2 nu), so a
     "x" or "full" scene is the uncoupled one ("full" also solves q_y, its total load
-    zero: the reference is "none" with `y=jc.Force(0.0)`): the same pressure and shear
+    held at zero: the reference is "none" with `y=jc.Displacement(0.0)`): the same pressure and shear
     (to 1e-9 of the peak) with the same work."""
     grid = jc.Grid((24, 24), 2e-3)
     times = jnp.linspace(0.0, 1.0, 4)
@@ -218,9 +218,76 @@ def test_incompressible_coupled_scene_solves_as_uncoupled(coupling):
                                  friction=MU, coupling=c, **y))
 
     sol = solve(coupling)
-    ref = solve("none", **({"y": jc.Force(0.0)} if coupling == "full" else {}))
+    ref = solve("none", **({"y": jc.Displacement(0.0)} if coupling == "full" else {}))
     p_max = float(ref.pressure.max())
     np.testing.assert_allclose(sol.pressure, ref.pressure, rtol=0, atol=1e-9 * p_max)
     np.testing.assert_allclose(sol.shear, ref.shear, rtol=0, atol=1e-9 * p_max)
     # The work of the uncoupled solve (the joint solver's one step took 2000 before).
     assert int(np.sum(sol.iterations)) <= 1.1 * int(np.sum(ref.iterations))
+
+
+def _held_scene(n, steps, y=None):
+    """Zener (mu_inf / mu_0 = 3, tau 0.01 s), full coupling, x displaced to 25 um over
+    0.02 s under W = 0.15 N: the scene of the rounds solver's near-hang."""
+    times = jnp.linspace(0.0, 0.02, steps)
+    material = jc.Zener(mu_inf=1.93e6, mu_0=1.93e6 / 3, tau=0.01, poisson=NU)
+    return jc.Scene(jc.Grid((n, n), 2.4e-3), jc.Sphere(R), material, times, jc.Force(W),
+                    x=jc.Displacement(25e-6 * times / 0.02), y=y, friction=MU,
+                    coupling="full")
+
+
+def test_a_solved_direction_with_no_input_is_held():
+    """y = None under full coupling is solved (the coupling makes q_y) but has no
+    input: it is held, delta_y = 0 exactly (it was load-controlled at F_y = 0, delta_y
+    ~1e-18 m, and every failed step started a root search on it), the same program
+    as `y=jc.Displacement(0.0)`; `y=jc.Force(0.0)` keeps the free indenter. On this
+    symmetric scene both carry F_y = 0 (to 1e-8 mu W) and the same pressure (to
+    2 rtol n of the peak, as `test_fallback_hands_over_and_counts`), with the joint
+    and the rounds solvers."""
+    held = _held_scene(16, 6)
+    ref = jc.solve(_held_scene(16, 6, y=jc.Displacement(0.0)))
+    free = jc.solve(_held_scene(16, 6, y=jc.Force(0.0)))
+    for solver in (None, jc.Rounds()):
+        sol = jc.solve(held, solver=solver)
+        assert np.all(np.asarray(sol.converged))
+        assert float(jnp.abs(sol.tangential_displacement[:, 1]).max()) == 0.0
+        assert float(jnp.abs(sol.tangential_force[:, 1]).max()) <= 1e-8 * MU * W
+        p_max = float(ref.pressure.max())
+        np.testing.assert_allclose(sol.pressure, ref.pressure, rtol=0,
+                                   atol=2e-8 * 16 * p_max)
+        np.testing.assert_allclose(free.pressure, ref.pressure, rtol=0,
+                                   atol=2e-8 * 16 * p_max)
+    assert float(jnp.abs(free.tangential_force[:, 1]).max()) <= 1e-8 * MU * W
+    assert np.array_equal(np.asarray(jc.solve(held).pressure), np.asarray(ref.pressure))
+
+
+def test_a_load_above_the_limit_slides_with_another_direction_held():
+    """x under load control at 1.2 mu W, y held (no input, full coupling): gross
+    sliding is decided on the load-controlled direction alone; the step returns the
+    sliding state (q = mu p along x, F_x = mu W, q_y = 0, delta_y = 0), converged, its
+    result saying the load was not carried, with both solvers."""
+    for solver in (None, jc.Rounds()):
+        sol = jc.solve(_scene(fx=1.2), solver=solver)
+        assert bool(sol.converged[0]) and bool(sol.sliding[0])
+        assert sol.result == jc.RESULTS.tangential_load_above_friction_limit
+        np.testing.assert_allclose(float(sol.tangential_force[0, 0]), MU * W, rtol=1e-8)
+        np.testing.assert_allclose(sol.shear[0, 0], MU * sol.pressure[0], rtol=0,
+                                   atol=1e-12 * float(sol.pressure.max()))
+        assert float(jnp.abs(sol.shear[0, 1]).max()) == 0.0
+        assert float(sol.tangential_displacement[0, 1]) == 0.0
+
+
+@pytest.mark.slow
+def test_rounds_solves_a_held_direction_without_a_root_search():
+    """Issue 31 item 7: the rounds solver on the 32^2 x 21 scene took 251 s and
+    converged on 11 of 21 steps while y = None was load-controlled (each failed step
+    ran a 40-evaluation root search on delta_y). Held, it converges on every step in
+    133 rounds (bound 300 here) and agrees with the joint solver to 2 rtol n of the
+    peak pressure."""
+    scene = _held_scene(32, 21)
+    sol = jc.solve(scene, solver=jc.Rounds())
+    ref = jc.solve(scene)
+    assert np.all(np.asarray(sol.converged))
+    assert int(np.sum(sol.rounds)) <= 300 and int(np.sum(sol.fallbacks)) == 0
+    p_max = float(ref.pressure.max())
+    np.testing.assert_allclose(sol.pressure, ref.pressure, rtol=0, atol=2e-8 * 32 * p_max)

@@ -266,18 +266,36 @@ def loop(solver: AbstractStepSolver, problem, setup, state):
 def step_outcome(problem: StepProblem, pressure, converged, rtol,
                  failure=RESULTS.max_steps_reached) -> RESULTS:
     """The `RESULTS` value of a step: `failure` if not `converged`; a converged step
-    under tangential load control whose load exceeds the friction limit `mu W` (beyond
-    the `rtol / 2` of `tangential.gross_sliding`) carries `mu W`, not the load asked
-    for: `tangential_load_above_friction_limit`; else `successful`."""
+    whose load (that of its load-controlled directions, `applied_load`)
+    exceeds the friction limit `mu W` (beyond the `rtol / 2` of
+    `tangential.gross_sliding`) carries `mu W`, not the load asked for:
+    `tangential_load_above_friction_limit`; else `successful`."""
     result = RESULTS.where(converged, RESULTS.successful, failure)
-    if problem.nd > 0 and all(problem.tangential_force_control):
+    if problem.nd > 0 and any(problem.tangential_force_control):
         area = problem.operator.grid.cell_area
         limit = area * jnp.sum(problem.friction * pressure)
-        load = jnp.sqrt(jnp.sum(problem.tangential_target**2))
+        load, _ = applied_load(problem.tangential_target, problem.tangential_force_control)
         above = load > limit * (1 + 0.5 * rtol)
         result = RESULTS.where(
             converged & above, RESULTS.tangential_load_above_friction_limit, result)
     return result
+
+
+def applied_load(target, force_control):
+    """`(magnitude, direction)` of the tangential load asked for: the `(nd,)` targets of
+    the load-controlled directions [force] (a displacement-controlled direction adds
+    nothing), its norm and unit vector (zeros for no load). The norm is safe at zero
+    (no NaN derivative for a load program that starts at zero).
+
+    Gross sliding is decided on this load alone: as a load-controlled direction drives
+    the indenter without bound, the slip of every cell turns along it, whatever the
+    displacement-controlled directions hold."""
+    load = jnp.where(jnp.asarray(force_control), target, 0.0)
+    square = jnp.sum(load * load)
+    positive = square > 0
+    magnitude = jnp.where(positive, jnp.sqrt(jnp.where(positive, square, 1.0)), 0.0)
+    direction = jnp.where(positive, load / jnp.where(positive, magnitude, 1.0), 0.0)
+    return magnitude, direction
 
 
 def safe_div(a, b):

@@ -13,8 +13,9 @@ ratio, friction coefficient, gap, history displacement, previous slip, targets):
 - stick cells: zero slip increment, `s / k_t = 0` with
   `s = u_t + history_t - previous_slip - delta_t`; slip cells: `q = -mu p s / |s|`
   (`nd = 2`), `q = mu p sign(q)` (`nd = 1`, the sign frozen); cells out of contact:
-  `q = 0`; gross sliding under load control: `q = mu p F / |F|` and `delta_t` the mean
-  of `u_t + history_t` over the contact;
+  `q = 0`; gross sliding under load control: `q = mu p F / |F|` (`F` the load of the
+  load-controlled directions) and their `delta_t` the mean of `u_t + history_t` over
+  the contact;
 - tangential load control per direction: `(A sum q_d - F_d) / (A sqrt(n_contact)) = 0`;
   displacement control: `delta_t,d` equals its target,
 
@@ -43,7 +44,7 @@ import jax.numpy as jnp
 import lineax as lx
 
 from .._solution import RESULTS
-from .base import AbstractStepSolver, StepGuess, StepProblem
+from .base import AbstractStepSolver, StepGuess, StepProblem, applied_load
 from .normal import inverse_preconditioner
 from .precondition import shear_x_preconditioner
 
@@ -154,17 +155,16 @@ def _residual(operator, config, frozen, x, theta):
             f_dt.append(dt[d] - t_target[d] / kt)
     f_dt = jnp.stack(f_dt)
 
-    if all(config.tangential_force_control):
-        # Gross sliding under load control: q = mu p along F; delta_t = mean over the
-        # contact of u_t + history_t (the rigid-body drift has no stick cell to fix it).
-        # A safe norm: sqrt at 0 has an infinite derivative (NaN gradients for a
-        # load program starting at zero, where the direction is never used).
-        f_sq = jnp.sum(t_target**2)
-        f_norm = jnp.sqrt(jnp.where(f_sq > 0, f_sq, 1.0))
-        direction = jnp.where(f_sq > 0, t_target / f_norm, 0.0)
+    if any(config.tangential_force_control):
+        # Gross sliding under load control: q = mu p along F (the load-controlled
+        # directions' load, `applied_load`: safe at F = 0); delta_t of a load-controlled
+        # direction = mean over the contact of u_t + history_t (the rigid-body drift has
+        # no stick cell to fix it), of a displacement-controlled one its target.
+        _, direction = applied_load(t_target, config.tangential_force_control)
         f_q_slide = jnp.where(contact[None], q - bound[None] * direction[:, None, None], q)
         mean = jnp.sum(jnp.where(contact[None], base, 0), axis=(1, 2)) / jnp.maximum(n_contact, 1)
-        f_dt_slide = dt - mean / kt
+        f_dt_slide = jnp.where(jnp.asarray(config.tangential_force_control),
+                               dt - mean / kt, f_dt)
         f_q = jnp.where(sliding, f_q_slide, f_q)
         f_dt = jnp.where(sliding, f_dt_slide, f_dt)
     return f_p, f_q, f_dz, f_dt

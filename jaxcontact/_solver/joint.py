@@ -45,7 +45,8 @@ This differs from a textbook projected PCG in:
    (`RESULTS.stalled`) after `stall` such iterations.
 
 Gross sliding under tangential load control (`|F| >= mu W` to `rtol / 2`,
-`tangential.gross_sliding`): `q = B F/|F|` on every contact cell, only `p` iterates.
+`tangential.gross_sliding`, `F` the load of the load-controlled directions,
+`base.applied_load`): `q = B F/|F|` on every contact cell, only `p` iterates.
 Design notes and the measurements behind every default: `benchmarks/notes/joint.md`.
 """
 
@@ -56,7 +57,7 @@ import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
 from .._solution import RESULTS
-from .base import AbstractStepSolver, make_result, run, step_outcome
+from .base import AbstractStepSolver, applied_load, make_result, run, step_outcome
 from .base import safe_div as _safe_div
 from .precondition import block_preconditioner
 from .residual import (
@@ -162,7 +163,7 @@ class _JointOperator:
         self.load_n = problem.normal_force_control
         fc_tuple = tuple(bool(f) for f in problem.tangential_force_control)
         self.fc = jnp.asarray(fc_tuple)
-        self.any_force, self.all_force = any(fc_tuple), all(fc_tuple)
+        self.any_force = any(fc_tuple)
         self.normal_target = jnp.asarray(problem.normal_target, dtype)
         self.tangential_target = jnp.asarray(problem.tangential_target, dtype)
         self.friction = jnp.asarray(problem.friction, dtype)
@@ -215,9 +216,7 @@ class _JointOperator:
         self.periodic = grid.periodic
         self.operator = operator
         self.w_p = self.c_tt / self.c_zz  # preconditioner weight of p relative to q
-        tangential_target = self.tangential_target
-        self.f_norm = jnp.sqrt(jnp.sum(tangential_target**2))
-        self.direction = tangential_target / jnp.where(self.f_norm > 0, self.f_norm, 1)
+        self.f_norm, self.direction = applied_load(self.tangential_target, fc_tuple)
 
     # ---- the operator ------------------------------------------------------------
     def k_of_p(self, ph):
@@ -291,7 +290,7 @@ class _JointOperator:
 
     # ---- the conditions (as normal._evaluate and tangential_cg) ---------------------
     def sliding_of(self, p):
-        if not self.all_force:
+        if not self.any_force:
             return jnp.array(False)
         limit = self.area * jnp.sum(self.friction * p)
         return gross_sliding(self.f_norm, limit, self.rtol)
@@ -424,9 +423,8 @@ class _JointOperator:
         cells when the bound is updated), the others projected; loads restored."""
         q = _onto_discs(q, bound, follow)
         if self.any_force:
-            q = jnp.where(sliding, q, self.fix_load(q, bound))
-        if self.all_force:
-            q = jnp.where(sliding, bound[None] * self.direction[:, None, None], q)
+            q = jnp.where(sliding, bound[None] * self.direction[:, None, None],
+                          self.fix_load(q, bound))
         return q
 
 

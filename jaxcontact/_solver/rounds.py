@@ -10,15 +10,16 @@ solvers accept their start with zero iterations). Without coupling one round is 
 without a tangential solve (`nd = 0`) it is the normal solve alone.
 
 Under tangential load control with `|F| >= mu W` (to `rtol / 2`,
-`tangential.gross_sliding`) the indenter slides: `q = mu p F/|F|`, reported, never
-iterated on (`RESULTS.tangential_load_above_friction_limit` when `|F| > mu W`).
+`tangential.gross_sliding`; `F` the load of the load-controlled directions,
+`base.applied_load`) the indenter slides: `q = mu p F/|F|`, reported, never iterated on
+(`RESULTS.tangential_load_above_friction_limit` when `|F| > mu W`).
 """
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from .base import AbstractStepSolver, StepGuess, make_result, step_outcome
+from .base import AbstractStepSolver, StepGuess, applied_load, make_result, step_outcome
 from .normal import NormalOperator, PolonskyKeer
 from .precondition import shear_x_preconditioner
 from .tangential import TangentialState, gross_sliding
@@ -58,7 +59,7 @@ class _RoundsOperator:
             # The xx spectrum floored by the normal one, on the unpadded grid.
             self.precondition_t = shear_x_preconditioner(operator, poisson)
         self.zx, self.zy = operator.coupling_spectra(poisson)
-        self.all_force = all(problem.tangential_force_control)
+        self.any_force = any(problem.tangential_force_control)
 
     def apply_tangential(self, q):
         return self.operator.apply_tangential(q, self.problem.poisson, blocks=self.blocks)
@@ -103,19 +104,21 @@ class _RoundsOperator:
                 max_steps=s.max_steps, resync_every=s.resync_every,
                 precondition=self.precondition_t, skip=skip)
 
-        if not self.all_force:
+        if not self.any_force:
             return cg()
         # Gross sliding under load control: q = mu p along F (reported, not iterated).
         limit = area * jnp.sum(bound)
-        f_norm = jnp.sqrt(jnp.sum(target**2))
+        f_norm, direction = applied_load(target, pr.tangential_force_control)
 
         def slide():
-            direction = target / jnp.where(f_norm > 0, f_norm, 1)
             q = bound[None] * direction[:, None, None]
             w = self.apply_tangential(q) + b
             contact = bound > 0
             n = jnp.maximum(jnp.sum(contact), 1)
-            delta = jnp.sum(jnp.where(contact[None], w, 0), axis=(1, 2)) / n
+            # The rigid drift of a load-controlled direction has no stick cell to fix
+            # it: the mean over the contact; a displacement-controlled one is given.
+            mean = jnp.sum(jnp.where(contact[None], w, 0), axis=(1, 2)) / n
+            delta = jnp.where(jnp.asarray(pr.tangential_force_control), mean, target)
             return TangentialState(
                 shear=q, displacement=w - b, slip=w - delta[:, None, None], delta=delta,
                 stick=jnp.zeros_like(contact), iterations=jnp.array(0),
