@@ -28,8 +28,12 @@ solve `(dF/dx)^T lambda = x_bar`: one linear solve with the same FFT operator
 (the operator is symmetric, so a transposed application costs what a forward one
 does). Frictionless and uncoupled x-only steps solve it by projected conjugate
 gradients on the contact / stick set (`_set_adjoint`); the others (coupling, 2-D slip,
-gross sliding under load control) by GMRES, matrix-free through `jax.vjp` of `F`.
-Nothing of the forward CG iterations is stored.
+gross sliding under load control) by GMRES, matrix-free through `jax.vjp` of `F`,
+right-preconditioned by the full-plane inverse of the operator's diagonal blocks on the
+contact cells (`_transposed_preconditioner`), with the slip rows of two shear
+components scaled across their slip direction (`slip_weight`, frozen: the same root)
+so that they do not grow without bound at the stick-slip boundary. Nothing of the
+forward CG iterations is stored.
 
 The derivative is that of the solution on its current active sets: exact away from
 active-set changes (a cell entering or leaving contact or the stick zone), where the
@@ -41,12 +45,11 @@ from typing import NamedTuple
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-import lineax as lx
 
 from .._solution import RESULTS
 from .base import AbstractStepSolver, StepGuess, StepProblem, applied_load
 from .normal import inverse_preconditioner
-from .precondition import shear_x_preconditioner
+from .precondition import block_preconditioner, shear_x_preconditioner
 
 
 class _Spec(NamedTuple):
@@ -68,9 +71,9 @@ class ImplicitAdjoint(eqx.Module):
     - `rtol`: relative tolerance of the adjoint solve; `None`: the step solver's.
     - `max_steps`: iteration bound of the adjoint solve (conjugate-gradient iterations
       of the frictionless and uncoupled "x" adjoints; GMRES iterations otherwise).
-    - `restart`: GMRES restart length.
-    - `precondition`: precondition the conjugate-gradient adjoints with the full-plane
-      inverse of the operator (as the forward solvers).
+    - `restart`: GMRES restart length (iterations per cycle).
+    - `precondition`: precondition the adjoint solves with the full-plane inverse of
+      the operator (as the forward solvers).
 
     A solve that does not reach `rtol` within `max_steps` is reported, never silent:
     `jc.solve(..., throw=True)` raises `RESULTS.adjoint_not_converged` when the
@@ -114,7 +117,7 @@ def _residual(operator, config, frozen, x, theta):
     """`F(x, theta)` on the frozen active sets (see module docs)."""
     p, q, dz, dt = x
     compliance, poisson, friction, h, history, previous_slip, w_target, t_target = theta
-    contact, stick, slip_sign, sliding, kz, kt, fixed = frozen
+    contact, stick, slip_sign, sliding, kz, kt, fixed, slip_weight, slip_direction = frozen
     area = operator.grid.cell_area
     n_contact = jnp.sum(contact)
     scale = area * jnp.sqrt(jnp.maximum(n_contact, 1).astype(p.dtype))
@@ -144,7 +147,13 @@ def _residual(operator, config, frozen, x, theta):
         sq = jnp.sum(s * s, axis=0)
         safe = jnp.sqrt(jnp.where(sq > 0, sq, 1.0))  # no NaN derivative at s = 0
         slipping = jnp.where(sq > 0, -bound / safe, 0.0)[None] * s
-    f_q = jnp.where(stick[None], s / kt, jnp.where(contact[None], q - slipping, q))
+    # Slip rows (two components): the part across the frozen slip direction times the
+    # frozen `slip_weight`: the same root, a better conditioned transposed system.
+    slip_row = q - slipping
+    if nd == 2:
+        along = jnp.sum(slip_direction * slip_row, axis=0)[None] * slip_direction
+        slip_row = along + slip_weight[None] * (slip_row - along)
+    f_q = jnp.where(stick[None], s / kt, jnp.where(contact[None], slip_row, q))
 
     f_dt = []
     for d in range(nd):
@@ -314,6 +323,65 @@ def _slip_out(operator, config, x, theta, kt):
     return ut + history[: config.nd] - dt[:, None, None] * kt
 
 
+def _tree_dot(a, b):
+    return sum(jnp.sum(u * v) for u, v in zip(jax.tree.leaves(a), jax.tree.leaves(b)))
+
+
+def _right_preconditioned_gmres(mv, precondition, b, x0, rtol, restart, max_steps):
+    """`(x, converged)` with `||mv(x) - b|| <= rtol ||b||` (2-norm) by GMRES from `x0`,
+    right-preconditioned: `jax.scipy.sparse.linalg.gmres` on `mv(M y) = b - mv(x0)`,
+    then `x = x0 + M y`, so its residual is the true one. The "incremental" method
+    stops inside a restart cycle as soon as its running estimate meets the target
+    (lineax's GMRES, and the "batched" method, run every cycle to its end); that
+    estimate can stop up to ~2x above it, hence a quarter of `rtol ||b||`. At most
+    `max_steps` iterations in cycles of `restart`. `converged` is judged on `mv(x)`
+    once more (relative 2-norm), as the forward solves and the CG adjoints are."""
+    r0 = jax.tree.map(jnp.subtract, b, mv(x0))
+    b_norm = jnp.sqrt(_tree_dot(b, b))
+    y, _ = jax.scipy.sparse.linalg.gmres(
+        lambda y: mv(precondition(y)), r0, jax.tree.map(jnp.zeros_like, r0), tol=0.0,
+        atol=0.25 * rtol * b_norm, restart=restart,
+        maxiter=max(1, -(-max_steps // restart)), solve_method="incremental")
+    x = jax.tree.map(jnp.add, x0, precondition(y))
+    residual = jax.tree.map(jnp.subtract, mv(x), b)
+    r2 = _tree_dot(residual, residual)
+    return x, jnp.isfinite(r2) & (r2 <= (rtol * b_norm) ** 2)
+
+
+def _transposed_preconditioner(operator, config, frozen, theta, precondition):
+    """`v -> M v`, an approximate inverse of `(dF/dx)^T` for the GMRES adjoint (the
+    identity without `precondition`).
+
+    On the contact rows of `F` (the gap), the stick rows (zero slip) and, once scaled
+    by `slip_weight`, across the slip direction of the slip rows, `dF/dx` is close to
+    the operator `C K` scaled by `1 / k_z`, `1 / k_t`; out of contact it is the
+    identity. `M`: on the contact cells `k` times the full-plane inverse of the
+    diagonal blocks of `C K` (`block_preconditioner`, as `JointPCG`; `K` is symmetric,
+    so the same for the transpose), the identity elsewhere and on the load and
+    displacement unknowns.
+    """
+    if not precondition:
+        return lambda v: v
+    contact, kz, kt = frozen[0], frozen[4], frozen[5]
+    compliance, poisson = theta[0], theta[1]
+    nd = config.nd
+    nn = compliance * operator.normal_spectrum(poisson)
+    xx, _, yy = operator.tangential_blocks(poisson)
+    inverse = block_preconditioner(
+        operator, nn, compliance * xx, compliance * yy if nd == 2 else None,
+        compliance=compliance, poisson=poisson)
+
+    def apply(v):
+        v_p, v_q, v_dz, v_dt = v
+        field = jnp.where(contact[None], jnp.concatenate([v_p[None], v_q]), 0)
+        m = inverse(field)
+        m_p = jnp.where(contact, kz * m[0], v_p)
+        m_q = jnp.where(contact[None], kt * m[1:], v_q)
+        return m_p, m_q, v_dz, v_dt
+
+    return apply
+
+
 def _make_attach(config: _Spec, adjoint: ImplicitAdjoint, rtol: float, throw: bool):
     """A function `x, slip, seed = attach(x, slip, frozen, theta, operator, seed)` that
     returns `x`, `slip` unchanged and whose vector-Jacobian product is the implicit one.
@@ -348,22 +416,11 @@ def _make_attach(config: _Spec, adjoint: ImplicitAdjoint, rtol: float, throw: bo
                                   x, theta)
 
         def by_gmres():
-            transposed = lx.FunctionLinearOperator(
-                lambda v: residual_vjp(v)[0], jax.eval_shape(lambda: x_bar))
-            # lineax counts restart cycles: `max_steps` iterations in cycles.
-            cycles = max(1, -(-maxiter // adjoint.restart))
-            solver = lx.GMRES(rtol=rtol, atol=0.0, restart=adjoint.restart,
-                              max_steps=cycles)
-            sol = lx.linear_solve(transposed, x_bar, solver, options={"y0": guess},
-                                  throw=False)
-            # Judged by the relative 2-norm residual, as the CG adjoints and the
-            # forward solves: lineax's own test (max norm, in y and in b) reports
-            # stagnation on steps whose residual is already below rtol.
-            residual = jax.tree.map(jnp.subtract, transposed.mv(sol.value), x_bar)
-            r2 = sum(jnp.sum(r * r) for r in jax.tree.leaves(residual))
-            b2 = sum(jnp.sum(b * b) for b in jax.tree.leaves(x_bar))
-            ok = jnp.isfinite(r2) & (r2 <= rtol**2 * b2)
-            return sol.value, ok
+            precondition = _transposed_preconditioner(operator, config, frozen, theta,
+                                                      adjoint.precondition)
+            return _right_preconditioned_gmres(
+                lambda v: residual_vjp(v)[0], precondition, x_bar, guess, rtol,
+                adjoint.restart, maxiter)
 
         if config.nd == 0:
             lam, ok = _normal_adjoint(operator, config, frozen, theta, x_bar, guess,
@@ -427,7 +484,21 @@ def differentiable_step(
     slip_sign = jnp.sign(res.shear)
     x = (res.pressure, res.shear, res.approach / kz, res.delta_t / kt)
     fixed = jnp.concatenate([x[2][None], x[3]])
-    frozen = (contact, res.stick & contact, slip_sign, res.sliding, kz, kt, fixed)
+    slip_weight = jnp.ones_like(res.pressure)
+    slip_direction = jnp.zeros_like(res.shear)
+    if nd == 2:
+        # Across the slip direction the row `q + mu p s / |s|` has derivative
+        # ~ mu p k_t / |s| times the operator, unbounded at the stick-slip boundary;
+        # times `|s| / (|s| + k_t mu p)` it is bounded and tends to the stick row `s / k_t`
+        # as |s| -> 0 (along the slip direction the derivative is 1: kept).
+        increment = res.slip - problem.previous_slip
+        size = jnp.sqrt(jnp.sum(increment * increment, axis=0))
+        scale = size + kt * jnp.asarray(problem.friction, dtype) * res.pressure
+        # A cell of zero slip keeps its row (there the row is `q`, the guard of `_residual`).
+        slip_weight = sg(jnp.where(size > 0, size / jnp.where(size > 0, scale, 1), 1.0))
+        slip_direction = sg(increment / jnp.where(size > 0, size, 1)[None])
+    frozen = (contact, res.stick & contact, slip_sign, res.sliding, kz, kt, fixed,
+              slip_weight, slip_direction)
     theta = (jnp.asarray(compliance, dtype), jnp.asarray(poisson, dtype),
              jnp.asarray(problem.friction, dtype), problem.gap, problem.history,
              problem.previous_slip, jnp.asarray(problem.normal_target, dtype),
