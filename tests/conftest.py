@@ -17,8 +17,33 @@ jax.config.update("jax_numpy_rank_promotion", "raise")
 
 
 import gc  # noqa: E402
+import shutil  # noqa: E402
+import tempfile  # noqa: E402
 
 import pytest  # noqa: E402
+
+from jaxcontact import enable_compilation_cache  # noqa: E402
+
+_SHARED_CACHE = "JAXCONTACT_TEST_CACHE_DIR"
+
+
+def pytest_configure(config):
+    """One persistent compilation cache for the test processes of a run (a fresh
+    folder, removed at the end): a program one process compiled, another loads
+    instead of compiling it again. `JAXCONTACT_TEST_CACHE_DIR=off` leaves it out."""
+    if os.environ.get(_SHARED_CACHE) == "off":
+        return
+    if not hasattr(config, "workerinput") and _SHARED_CACHE not in os.environ:
+        # The controlling process (or a run without xdist): the workers it starts
+        # inherit the folder through the environment.
+        os.environ[_SHARED_CACHE] = tempfile.mkdtemp(prefix="jaxcontact-tests-xla-")
+        config._jaxcontact_cache_owner = True
+    enable_compilation_cache(os.environ[_SHARED_CACHE], min_compile_seconds=0.3)
+
+
+def pytest_unconfigure(config):
+    if getattr(config, "_jaxcontact_cache_owner", False):
+        shutil.rmtree(os.environ.pop(_SHARED_CACHE), ignore_errors=True)
 
 
 def _memory_maps() -> int:
