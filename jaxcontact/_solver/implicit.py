@@ -74,6 +74,10 @@ class ImplicitAdjoint(eqx.Module):
     - `restart`: GMRES restart length (iterations per cycle).
     - `precondition`: precondition the adjoint solves with the full-plane inverse of
       the operator (as the forward solvers).
+    - `gmres_method`: `"incremental"` (stops inside a restart cycle: fewer operator
+      applications; the faster on CPUs), `"batched"` (whole cycles, each a few large
+      kernels: the faster on GPUs, 2x at 256^2 on an H200), or `None`: by the default
+      backend (`benchmarks/README.md`, `gradients.py`).
 
     A solve that does not reach `rtol` within `max_steps` is reported, never silent:
     `jc.solve(..., throw=True)` raises `RESULTS.adjoint_not_converged` when the
@@ -84,10 +88,14 @@ class ImplicitAdjoint(eqx.Module):
     max_steps: int = eqx.field(static=True, default=2000)
     restart: int = eqx.field(static=True, default=40)
     precondition: bool = eqx.field(static=True, default=True)
+    gmres_method: str | None = eqx.field(static=True, default=None)
 
     def __check_init__(self):
         if self.rtol is not None and not (0 < self.rtol < 1):
             raise ValueError(f"rtol must be in (0, 1), got {self.rtol!r}")
+        if self.gmres_method not in (None, "incremental", "batched"):
+            raise ValueError('gmres_method must be None, "incremental" or "batched", got '
+                             f"{self.gmres_method!r}")
         for name in ("max_steps", "restart"):
             value = getattr(self, name)
             if not (isinstance(value, int) and value >= 1):
@@ -327,25 +335,36 @@ def _tree_dot(a, b):
     return sum(jnp.sum(u * v) for u, v in zip(jax.tree.leaves(a), jax.tree.leaves(b)))
 
 
-def _right_preconditioned_gmres(mv, precondition, b, x0, rtol, restart, max_steps):
+def _right_preconditioned_gmres(mv, precondition, b, x0, rtol, restart, max_steps,
+                                method="incremental"):
     """`(x, converged)` with `||mv(x) - b|| <= rtol ||b||` (2-norm) by GMRES from `x0`,
     right-preconditioned: `jax.scipy.sparse.linalg.gmres` on `mv(M y) = b - mv(x0)`,
-    then `x = x0 + M y`, so its residual is the true one. The "incremental" method
-    stops inside a restart cycle as soon as its running estimate meets the target
-    (lineax's GMRES, and the "batched" method, run every cycle to its end); that
-    estimate can stop up to ~2x above it, hence a quarter of `rtol ||b||`. At most
+    then `x = x0 + M y`, so its residual is the true one. `method` "incremental" stops
+    inside a restart cycle as soon as its running estimate meets the target (lineax's
+    GMRES, and the "batched" method, run every cycle to its end); that estimate can
+    stop up to ~2x above it, hence a quarter of `rtol ||b||` ("batched" tests the true
+    residual after each cycle: `rtol ||b||`). At most
     `max_steps` iterations in cycles of `restart`. `converged` is judged on `mv(x)`
     once more (relative 2-norm), as the forward solves and the CG adjoints are."""
     r0 = jax.tree.map(jnp.subtract, b, mv(x0))
     b_norm = jnp.sqrt(_tree_dot(b, b))
     y, _ = jax.scipy.sparse.linalg.gmres(
         lambda y: mv(precondition(y)), r0, jax.tree.map(jnp.zeros_like, r0), tol=0.0,
-        atol=0.25 * rtol * b_norm, restart=restart,
-        maxiter=max(1, -(-max_steps // restart)), solve_method="incremental")
+        atol=(0.25 if method == "incremental" else 1.0) * rtol * b_norm, restart=restart,
+        maxiter=max(1, -(-max_steps // restart)), solve_method=method)
     x = jax.tree.map(jnp.add, x0, precondition(y))
     residual = jax.tree.map(jnp.subtract, mv(x), b)
     r2 = _tree_dot(residual, residual)
     return x, jnp.isfinite(r2) & (r2 <= (rtol * b_norm) ** 2)
+
+
+def _gmres_method(adjoint: ImplicitAdjoint) -> str:
+    """The adjoint's GMRES method: its own, or by the default backend (measured:
+    "incremental" on the 2-core CPU, 2.6x against 3.8x for "batched" at 64^2 x 20;
+    "batched" on an H200, 3.4x against 5.7x at 256^2 x 50; coupling "full")."""
+    if adjoint.gmres_method is not None:
+        return adjoint.gmres_method
+    return "incremental" if jax.default_backend() == "cpu" else "batched"
 
 
 def _transposed_preconditioner(operator, config, frozen, theta, precondition):
@@ -420,7 +439,7 @@ def _make_attach(config: _Spec, adjoint: ImplicitAdjoint, rtol: float, throw: bo
                                                       adjoint.precondition)
             return _right_preconditioned_gmres(
                 lambda v: residual_vjp(v)[0], precondition, x_bar, guess, rtol,
-                adjoint.restart, maxiter)
+                adjoint.restart, maxiter, _gmres_method(adjoint))
 
         if config.nd == 0:
             lam, ok = _normal_adjoint(operator, config, frozen, theta, x_bar, guess,
