@@ -249,9 +249,10 @@ class Scene(eqx.Module):
       (no tangential input). A direction with no input that is solved (y under
       `coupling="full"`, x under any coupling) is held: its rigid tangential
       displacement is zero, as CONTACT poses it (its F = 1: F_x and the y shift given);
-      give `jc.Force(0.0)` for an indenter free to move in it. A direction that is not solved (y under `"none"` or
-      `"x"`) carries no shear. On a scene symmetric about that direction's axis (a
-      sphere loaded along x) the two are the same solution.
+      give `jc.Force(0.0)` for an indenter free to move in it. A direction that is not
+      solved (y under `"none"` or `"x"`) carries no shear. On a scene symmetric about
+      that direction's axis (a sphere loaded along x) held and free are the same
+      solution.
     - `friction`: Coulomb friction coefficient `mu >= 0`.
     - `coupling`: `"none"` (pressure and shear independent), `"x"` (semi-coupled: `p`
       and `q_x` interact, `q_y = 0`), or `"full"` (`p`, `q_x`, `q_y` all interact).

@@ -206,8 +206,8 @@ def test_no_sliding_flag_without_friction_concrete_or_traced():
 @pytest.mark.parametrize("coupling", ["x", "full"])
 def test_incompressible_coupled_scene_solves_as_uncoupled(coupling):
     """nu = 0.5: the normal-tangential blocks vanish (they scale with 1 - 2 nu), so a
-    "x" or "full" scene is the uncoupled one ("full" also solves q_y, its total load
-    held at zero: the reference is "none" with `y=jc.Displacement(0.0)`): the same pressure and shear
+    "x" or "full" scene is the uncoupled one ("full" also solves q_y with y held: the
+    reference is "none" with `y=jc.Displacement(0.0)`): the same pressure and shear
     (to 1e-9 of the peak) with the same work."""
     grid = jc.Grid((24, 24), 2e-3)
     times = jnp.linspace(0.0, 1.0, 4)
@@ -290,4 +290,5 @@ def test_rounds_solves_a_held_direction_without_a_root_search():
     assert np.all(np.asarray(sol.converged))
     assert int(np.sum(sol.rounds)) <= 300 and int(np.sum(sol.fallbacks)) == 0
     p_max = float(ref.pressure.max())
-    np.testing.assert_allclose(sol.pressure, ref.pressure, rtol=0, atol=2e-8 * 32 * p_max)
+    np.testing.assert_allclose(sol.pressure, ref.pressure, rtol=0,
+                               atol=2e-8 * 32 * p_max)

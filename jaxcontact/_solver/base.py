@@ -274,7 +274,8 @@ def step_outcome(problem: StepProblem, pressure, converged, rtol,
     if problem.nd > 0 and any(problem.tangential_force_control):
         area = problem.operator.grid.cell_area
         limit = area * jnp.sum(problem.friction * pressure)
-        load, _ = applied_load(problem.tangential_target, problem.tangential_force_control)
+        load, _ = applied_load(problem.tangential_target,
+                               problem.tangential_force_control)
         above = load > limit * (1 + 0.5 * rtol)
         result = RESULTS.where(
             converged & above, RESULTS.tangential_load_above_friction_limit, result)

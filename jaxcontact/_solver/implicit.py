@@ -94,8 +94,8 @@ class ImplicitAdjoint(eqx.Module):
         if self.rtol is not None and not (0 < self.rtol < 1):
             raise ValueError(f"rtol must be in (0, 1), got {self.rtol!r}")
         if self.gmres_method not in (None, "incremental", "batched"):
-            raise ValueError('gmres_method must be None, "incremental" or "batched", got '
-                             f"{self.gmres_method!r}")
+            raise ValueError('gmres_method must be None, "incremental" or "batched", '
+                             f"got {self.gmres_method!r}")
         for name in ("max_steps", "restart"):
             value = getattr(self, name)
             if not (isinstance(value, int) and value >= 1):
@@ -125,7 +125,8 @@ def _residual(operator, config, frozen, x, theta):
     """`F(x, theta)` on the frozen active sets (see module docs)."""
     p, q, dz, dt = x
     compliance, poisson, friction, h, history, previous_slip, w_target, t_target = theta
-    contact, stick, slip_sign, sliding, kz, kt, fixed, slip_weight, slip_direction = frozen
+    (contact, stick, slip_sign, sliding, kz, kt, fixed, slip_weight,
+     slip_direction) = frozen
     area = operator.grid.cell_area
     n_contact = jnp.sum(contact)
     scale = area * jnp.sqrt(jnp.maximum(n_contact, 1).astype(p.dtype))
@@ -350,8 +351,8 @@ def _right_preconditioned_gmres(mv, precondition, b, x0, rtol, restart, max_step
     b_norm = jnp.sqrt(_tree_dot(b, b))
     y, _ = jax.scipy.sparse.linalg.gmres(
         lambda y: mv(precondition(y)), r0, jax.tree.map(jnp.zeros_like, r0), tol=0.0,
-        atol=(0.25 if method == "incremental" else 1.0) * rtol * b_norm, restart=restart,
-        maxiter=max(1, -(-max_steps // restart)), solve_method=method)
+        atol=(0.25 if method == "incremental" else 1.0) * rtol * b_norm,
+        restart=restart, maxiter=max(1, -(-max_steps // restart)), solve_method=method)
     x = jax.tree.map(jnp.add, x0, precondition(y))
     residual = jax.tree.map(jnp.subtract, mv(x), b)
     r2 = _tree_dot(residual, residual)
@@ -508,12 +509,12 @@ def differentiable_step(
     if nd == 2:
         # Across the slip direction the row `q + mu p s / |s|` has derivative
         # ~ mu p k_t / |s| times the operator, unbounded at the stick-slip boundary;
-        # times `|s| / (|s| + k_t mu p)` it is bounded and tends to the stick row `s / k_t`
-        # as |s| -> 0 (along the slip direction the derivative is 1: kept).
+        # times `|s| / (|s| + k_t mu p)` it is bounded and tends to the stick row
+        # `s / k_t` as |s| -> 0 (along the slip direction the derivative is 1: kept).
         increment = res.slip - problem.previous_slip
         size = jnp.sqrt(jnp.sum(increment * increment, axis=0))
         scale = size + kt * jnp.asarray(problem.friction, dtype) * res.pressure
-        # A cell of zero slip keeps its row (there the row is `q`, the guard of `_residual`).
+        # A cell of zero slip keeps its row (there it is `q`: `_residual`'s guard).
         slip_weight = sg(jnp.where(size > 0, size / jnp.where(size > 0, scale, 1), 1.0))
         slip_direction = sg(increment / jnp.where(size > 0, size, 1)[None])
     frozen = (contact, res.stick & contact, slip_sign, res.sliding, kz, kt, fixed,
