@@ -4,8 +4,9 @@
 for one grid, computed once at construction, and applies them by FFT:
 
 - non-periodic grids (DC-FFT, Liu, Wang & Liu 2000): tractions are zero-padded to
-  `2nx x 2ny`, the kernel is laid out in wrap-around order, and the result is cropped
-  back to `nx x ny`. The transforms are pruned: the forward transform runs its row FFTs
+  `Lx x Ly` (`padded_shape`: `2n`, or where that has a prime factor above 7 the
+  smallest length `>= 2n - 1` without one), the kernel is laid out in wrap-around order, and the
+  result is cropped back to `nx x ny`. The transforms are pruned: the forward transform runs its row FFTs
   on the `nx` non-zero rows only, and the inverse transform runs its column FFTs on the
   `nx` rows that are kept. This is exactly the padded linear convolution, at about half
   the cost of `rfft2(s=(2nx, 2ny))` / `irfft2` at large `n`.
@@ -40,11 +41,38 @@ def _concrete(grid: Grid) -> bool:
     return not _validate.is_traced(grid.size)
 
 
-def _wraparound_offsets(n: int, d, xp):
-    """Offsets `i * d` for `i = 0..n-1, (unused), -(n-1)..-1`, length `2n`, and a mask."""
-    i = xp.arange(2 * n)
-    i = xp.where(i < n, i, i - 2 * n)
-    return i * d, i != -n
+def fast_length(n: int) -> int:
+    """The smallest integer `>= n` with no prime factor above 7.
+
+    A linear convolution of `n` cells is exact on any padded length `>= 2n - 1`; the
+    FFT of a length with a large prime factor costs several times more (Bluestein):
+    at n = 113 (CONTACT's Spence grid) a length of 226 = 2 x 113 is 3x slower than 225.
+    """
+    m = max(int(n), 1)
+    while True:
+        k = m
+        for p in (2, 3, 5, 7):
+            while k % p == 0:
+                k //= p
+        if k == 1:
+            return m
+        m += 1
+
+
+def padded_shape(shape) -> tuple[int, int]:
+    """`(Lx, Ly)`: the DC-FFT padded lengths of a non-periodic grid of `shape`: `2n`
+    where that has no prime factor above 7, else `fast_length(2n - 1)`."""
+    def length(n):
+        return 2 * n if fast_length(2 * n) == 2 * n else fast_length(2 * n - 1)
+    return tuple(length(int(n)) for n in shape)
+
+
+def _wraparound_offsets(n: int, length: int, d, xp):
+    """Offsets `i * d` for `i = 0..n-1, (unused), -(n-1)..-1`, `length` (`>= 2n - 1`)
+    entries, and the mask of the used ones."""
+    i = xp.arange(length)
+    used = (i < n) | (i > length - n)
+    return xp.where(i < n, i, i - length) * d, used
 
 
 def _dc_spectra(grid: Grid, names):
@@ -62,8 +90,9 @@ def _dc_spectra(grid: Grid, names):
         dx, dy = (float(v) for v in np.asarray(grid.size, np.float64) / np.array([nx, ny]))
     else:
         dx, dy = grid.spacing
-    ox, mx = _wraparound_offsets(nx, dx, xp)
-    oy, my = _wraparound_offsets(ny, dy, xp)
+    lx, ly = padded_shape(grid.shape)
+    ox, mx = _wraparound_offsets(nx, lx, dx, xp)
+    oy, my = _wraparound_offsets(ny, ly, dy, xp)
     x, y = xp.meshgrid(ox, oy, indexing="ij")
     keep = mx[:, None] & my[None, :]
     base = dict(zip(("s1", "s2", "sxy", "szx", "szy"),
@@ -197,13 +226,19 @@ class HalfSpace(eqx.Module):
 
     # -- transforms ------------------------------------------------------------------
 
+    @property
+    def fft_shape(self) -> tuple[int, int]:
+        """`(Lx, Ly)`: the FFT grid, the grid's shape if periodic, else `padded_shape`."""
+        return self.grid.shape if self.grid.periodic else padded_shape(self.grid.shape)
+
     def forward(self, field: Float[Array, "... nx ny"]):
-        """Spectrum of a real field (padded and pruned for non-periodic grids)."""
-        nx, ny = self.grid.shape
+        """Spectrum `(..., Lx, Ly // 2 + 1)` of a real field (padded and pruned for
+        non-periodic grids)."""
         if self.grid.periodic:
             return jnp.fft.rfft2(field)
-        spec = jnp.fft.rfft(field, n=2 * ny, axis=-1)
-        return jnp.fft.fft(spec, n=2 * nx, axis=-2)
+        lx, ly = self.fft_shape
+        spec = jnp.fft.rfft(field, n=ly, axis=-1)
+        return jnp.fft.fft(spec, n=lx, axis=-2)
 
     def inverse(self, spec) -> Float[Array, "... nx ny"]:
         """Inverse of `forward`, cropped to the grid."""
@@ -211,13 +246,12 @@ class HalfSpace(eqx.Module):
         if self.grid.periodic:
             return jnp.fft.irfft2(spec, s=(nx, ny))
         field = jnp.fft.ifft(spec, axis=-2)[..., :nx, :]
-        return jnp.fft.irfft(field, n=2 * ny, axis=-1)[..., :ny]
+        return jnp.fft.irfft(field, n=self.fft_shape[1], axis=-1)[..., :ny]
 
     def diagonal(self, spectrum) -> Float[Array, ""]:
         """Diagonal entry of the convolution with a real, even `spectrum` (its kernel at
         zero offset: the mean of the full spectrum, the half-spectrum weighted)."""
-        nx, ny = self.grid.shape
-        full_ny = ny if self.grid.periodic else 2 * ny
+        full_ny = self.fft_shape[1]
         m = spectrum.shape[-1]
         weights = jnp.full((m,), 2.0, spectrum.dtype).at[0].set(1.0)
         if full_ny % 2 == 0:

@@ -117,12 +117,11 @@ def _solve3(h, g):
     return jnp.stack(x) * s
 
 
-def _parseval_weights(grid):
+def _parseval_weights(operator):
     """Weights `w` and normaliser `N` with `a.b = sum(w Re(conj(a^) b^)) / N` for the
     spectra `a^ = forward(a)` of the operator (rfft along the last axis)."""
-    nx, ny = grid.shape
-    n_fft = ny if grid.periodic else 2 * ny
-    count = nx * ny if grid.periodic else 4 * nx * ny
+    lx, n_fft = operator.fft_shape
+    count = lx * n_fft
     w = np.full(n_fft // 2 + 1, 2.0)
     w[0] = 1.0
     if n_fft % 2 == 0:
@@ -158,6 +157,7 @@ class _JointOperator:
         compliance, poisson = problem.compliance, problem.poisson
         self.nd, self.grid, self.dtype = nd, grid, dtype
         self.nx, self.ny = grid.shape
+        self.lx, self.ly = operator.fft_shape
         self.area = grid.cell_area
         self.rtol = solver.tolerance(dtype)
         self.load_n = problem.normal_force_control
@@ -174,7 +174,7 @@ class _JointOperator:
         self.spread_when, self.spread_newton = solver.spread_when, solver.spread_newton
 
         def symbols(transposed):
-            """`(nn, xx, xy, yy, zx, zy, izx, izy)` in the `(kx, ky)` layout of
+            """`(nn, xx, xy, yy, zx, zy, czx, czy)` in the `(kx, ky)` layout of
             `operator.forward`, or `transposed` to `(ky, kx)`."""
             nn = compliance * operator.normal_spectrum(poisson, transposed)
             xx, xy, yy = operator.tangential_blocks(poisson, transposed)
@@ -182,12 +182,12 @@ class _JointOperator:
             if nd == 2:
                 xy, yy = compliance * xy, compliance * yy
             zx, zy = operator.coupling_spectra(poisson, transposed)
-            izx = 1j * compliance * zx  # u_z <- q_x; u_x <- p: its negative
-            izy = 1j * compliance * zy if (nd == 2 and zy is not None) else None
-            return nn, xx, xy, yy, zx, zy, izx, izy
+            czx = compliance * zx  # u_z <- q_x: i czx; u_x <- p: -i czx
+            czy = compliance * zy if (nd == 2 and zy is not None) else None
+            return nn, xx, xy, yy, zx, zy, czx, czy
 
-        nn, xx, xy, yy, zx, zy, izx, izy = symbols(False)
-        w_ky, n_par = _parseval_weights(grid)
+        nn, xx, xy, yy, zx, zy, czx, czy = symbols(False)
+        w_ky, n_par = _parseval_weights(operator)
         w_ky = jnp.asarray(w_ky, dtype)[None, :]  # (1, ky): broadcasts over kx
         # Self-compliances (the operator's diagonal): the kernels at zero offset.
         self.c_zz = jnp.sum(w_ky * nn) / n_par
@@ -200,10 +200,10 @@ class _JointOperator:
                 poisson=poisson)
         if not grid.periodic:
             # The `(ky, kx)` layout of `forward` below: spectral passes contiguous.
-            nn, xx, xy, yy, zx, zy, izx, izy = symbols(True)
+            nn, xx, xy, yy, zx, zy, czx, czy = symbols(True)
             w_ky = jnp.swapaxes(w_ky, -1, -2)
         self.nn, self.xx, self.xy, self.yy = nn, xx, xy, yy
-        self.izx, self.izy = izx, izy
+        self.czx, self.czy = czx, czy
         # Parseval weights folded into the real symbols: quadratic forms become plain
         # sums over a spectrum.
         wn = w_ky / n_par
@@ -212,7 +212,7 @@ class _JointOperator:
         self.s_zx = wn * compliance * zx
         if nd == 2:
             self.s_xy, self.s_yy = wn * xy, wn * yy
-            self.s_zy = wn * compliance * zy if izy is not None else None
+            self.s_zy = wn * czy if czy is not None else None
         self.periodic = grid.periodic
         self.operator = operator
         self.w_p = self.c_tt / self.c_zz  # preconditioner weight of p relative to q
@@ -221,20 +221,32 @@ class _JointOperator:
     # ---- the operator ------------------------------------------------------------
     def k_of_p(self, ph):
         """Spectra `(u_z, u_t...)` of a pressure spectrum."""
-        out = [self.nn * ph, -self.izx * ph]
+        pr, pi = jnp.real(ph), jnp.imag(ph)
+        czx, czy = self.czx, self.czy
+        re = [self.nn * pr, czx * pi]
+        im = [self.nn * pi, -czx * pr]
         if self.nd == 2:
-            out.append(-self.izy * ph if self.izy is not None else jnp.zeros_like(ph))
-        return jnp.stack(out)
+            zero = jnp.zeros_like(pr)
+            re.append(czy * pi if czy is not None else zero)
+            im.append(-czy * pr if czy is not None else zero)
+        return jax.lax.complex(jnp.stack(re), jnp.stack(im))
 
     def k_of_q(self, qh):
         """Spectra `(u_z, u_t...)` of a shear spectrum `(nd, ...)`."""
-        izx, izy = self.izx, self.izy
-        qx = qh[0]
+        # Real arithmetic on real symbols: a complex product would make XLA hoist
+        # complex copies of the symbols out of the loop (twice the memory traffic).
+        czx, czy = self.czx, self.czy
+        xr, xi = jnp.real(qh[0]), jnp.imag(qh[0])
         if self.nd == 1:
-            return jnp.stack([izx * qx, self.xx * qx])
-        qy = qh[1]
-        uz = izx * qx + (izy * qy if izy is not None else 0)
-        return jnp.stack([uz, self.xx * qx + self.xy * qy, self.xy * qx + self.yy * qy])
+            return jax.lax.complex(jnp.stack([-czx * xi, self.xx * xr]),
+                                   jnp.stack([czx * xr, self.xx * xi]))
+        yr, yi = jnp.real(qh[1]), jnp.imag(qh[1])
+        zr, zi = -czx * xi, czx * xr
+        if czy is not None:
+            zr, zi = zr - czy * yi, zi + czy * yr
+        re = [zr, self.xx * xr + self.xy * yr, self.xy * xr + self.yy * yr]
+        im = [zi, self.xx * xi + self.xy * yi, self.xy * xi + self.yy * yi]
+        return jax.lax.complex(jnp.stack(re), jnp.stack(im))
 
     def k_full(self, th):
         return self.k_of_p(th[0]) + self.k_of_q(th[1:])
@@ -260,15 +272,15 @@ class _JointOperator:
         `(ky, kx)` (the column transforms along the contiguous axis)."""
         if self.periodic:
             return self.operator.forward(x)
-        spec = jnp.fft.rfft(x, n=2 * self.ny, axis=-1)
-        return jnp.fft.fft(jnp.swapaxes(spec, -1, -2), n=2 * self.nx, axis=-1)
+        spec = jnp.fft.rfft(x, n=self.ly, axis=-1)
+        return jnp.fft.fft(jnp.swapaxes(spec, -1, -2), n=self.lx, axis=-1)
 
     def inverse(self, uh):
         if self.periodic:
             return self.operator.inverse(uh)
         field = jnp.fft.ifft(uh, axis=-1)[..., :self.nx]
         field = jnp.swapaxes(field, -1, -2)
-        return jnp.fft.irfft(field, n=2 * self.ny, axis=-1)[..., :self.ny]
+        return jnp.fft.irfft(field, n=self.ly, axis=-1)[..., :self.ny]
 
     def apply(self, x):
         """Displacements `(u_z, u_t...)` of the traction `(p, q...)`: one application."""

@@ -13,9 +13,11 @@ are left out), with these differences:
   K_zz` (Cerruti against Boussinesq: `(1 - nu k_x^2 / k^2) / |k|` against
   `(1 - nu) / |k|`), so the tangential spectra are floored by the normal one, which
   only touches the broken modes;
-- by default it runs on the UNPADDED grid, periodically, with the even modes of the
-  padded spectra (those of the kernel wrapped modulo the grid): a quarter of the
-  transform size. A preconditioner need not be exact: +14 % iterations, -25 % time
+- by default it runs on the UNPADDED grid, periodically, with the kernel wrapped
+  modulo the grid (the even modes of the padded spectra when these are `2n` long): a
+  quarter of the transform size. A grid length with a prime factor above 7 is
+  extended by zeros to the next length without one (`preconditioner_shape`; 113 ->
+  120: the transform of a prime length costs ~3.5x more). A preconditioner need not be exact: +14 % iterations, -25 % time
   for the joint solver at 105^2;
 - given the material (`compliance`, `poisson`), the unpadded spectra are raised to the
   CONTINUOUS half-space symbols where these are larger (`continuum_symbols`): on some
@@ -25,6 +27,8 @@ are left out), with these differences:
 """
 
 import jax.numpy as jnp
+
+from .._operator import fast_length, padded_shape
 
 
 def inverse_symbol(spectrum):
@@ -45,18 +49,20 @@ def padded_inverse(operator, spectra):
 
 def continuum_symbols(grid, poisson, nd):
     """Block diagonal of the continuous half-space symbols per unit compliance on the
-    rfft2 modes of the unpadded grid, `(1 + nd, nx, ny // 2 + 1)` [length].
+    rfft2 modes of the preconditioner grid (`preconditioner_shape`, the unpadded
+    grid for most sizes), `(1 + nd, mx, my // 2 + 1)` [length].
 
     Boussinesq's `(1 - nu) / |k|` and Cerruti's `(1 - nu k_x^2 / |k|^2) / |k|` (`k_y`
     for y), `k` in rad/length: times a compliance, the scale of the operator's DFT
     spectra (they agree to a few percent away from the grid's Nyquist corner). The
     mean mode takes the grid's lowest wavenumber, `2 pi / max(Lx, Ly)`.
     """
-    nx, ny = grid.shape
-    lx, ly = grid.size[0], grid.size[1]
+    nx, ny = preconditioner_shape(grid)
+    dx, dy = grid.spacing
+    lx, ly = nx * dx, ny * dy
     dtype = grid.size.dtype
-    kx = 2 * jnp.pi * jnp.fft.fftfreq(nx).astype(dtype)[:, None] * (nx / lx)
-    ky = 2 * jnp.pi * jnp.fft.rfftfreq(ny).astype(dtype)[None, :] * (ny / ly)
+    kx = 2 * jnp.pi * jnp.fft.fftfreq(nx).astype(dtype)[:, None] / dx
+    ky = 2 * jnp.pi * jnp.fft.rfftfreq(ny).astype(dtype)[None, :] / dy
     k2 = kx * kx + ky * ky
     mean = k2 == 0
     k_min = 2 * jnp.pi / jnp.maximum(lx, ly)
@@ -92,17 +98,59 @@ def block_preconditioner(operator, nn, xx, yy=None, *, coarse=True, compliance=N
     return unpadded_inverse(grid, spectra, continuum)
 
 
+def preconditioner_shape(grid) -> tuple[int, int]:
+    """`(mx, my)`: the periodic grid the unpadded preconditioners run on: the grid's
+    cells, extended by zeros to lengths with no prime factor above 7
+    (`_operator.fast_length`; the grid itself for most sizes)."""
+    return tuple(fast_length(n) for n in grid.shape)
+
+
+def _fold(kernel, n: int, m: int, axis: int):
+    """Kernel values of offsets `0..n-1` (first `n` entries along `axis`) and
+    `-(n-1)..-1` (last `n - 1`) summed modulo `m` (`>= n`): the kernel of the periodic
+    grid of `m` cells."""
+    kernel = jnp.moveaxis(kernel, axis, -1)
+    length = kernel.shape[-1]
+    widths = [(0, 0)] * (kernel.ndim - 1)
+    positive = jnp.pad(kernel[..., :n], widths + [(0, m - n)])
+    negative = jnp.pad(kernel[..., length - n + 1:], widths + [(m - n + 1, 0)])
+    return jnp.moveaxis(positive + negative, -1, axis)
+
+
+def wrapped_spectra(grid, padded_spectra):
+    """The rfft2 `(..., mx, my // 2 + 1)` on the periodic preconditioner grid
+    (`preconditioner_shape`) of the kernel wrapped modulo that grid, from real, even
+    padded spectra `(..., Lx, Ly // 2 + 1)`.
+
+    With `L = 2m` these are the even modes of the padded spectra; otherwise the kernel
+    is transformed back, folded (offset `d` onto `d mod m`) and transformed again.
+    """
+    lx, ly = padded_shape(grid.shape)
+    mx, my = preconditioner_shape(grid)
+    if (lx, ly) == (2 * mx, 2 * my):
+        return padded_spectra[..., ::2, ::2]
+    kernel = jnp.fft.irfft2(padded_spectra, s=(lx, ly))
+    kernel = _fold(_fold(kernel, grid.shape[0], mx, -2), grid.shape[1], my, -1)
+    return jnp.fft.rfft2(kernel).real
+
+
 def unpadded_inverse(grid, padded_spectra, continuum=None):
-    """`r -> F^-1[F[r] / spectrum]` on the UNPADDED grid (periodic, `rfft2`) of a
-    non-periodic grid's padded spectra `(..., 2 nx, ny + 1)`: their even modes (the
-    kernel wrapped modulo the grid), raised to `continuum` `(..., nx, ny // 2 + 1)`
-    (the same scale) where that is larger, inverted by `inverse_symbol`."""
-    spectra = padded_spectra[..., ::2, ::2]
+    """`r -> F^-1[F[r] / spectrum]` on the periodic preconditioner grid
+    (`preconditioner_shape`: the UNPADDED grid for most sizes), `r` zero-extended to
+    it and the result cropped, from a non-periodic grid's padded spectra
+    `(..., Lx, Ly // 2 + 1)`: the kernel wrapped modulo that grid
+    (`wrapped_spectra`), raised to `continuum` `(..., mx, my // 2 + 1)` (the same
+    scale) where that is larger, inverted by `inverse_symbol`."""
+    spectra = wrapped_spectra(grid, padded_spectra)
     if continuum is not None:
         spectra = jnp.maximum(spectra, continuum.astype(spectra.dtype))
     m = inverse_symbol(spectra)
-    shape = grid.shape
-    return lambda r: jnp.fft.irfft2(jnp.fft.rfft2(r) * m, s=shape)
+    shape = preconditioner_shape(grid)
+    nx, ny = grid.shape
+    if shape == grid.shape:
+        return lambda r: jnp.fft.irfft2(jnp.fft.rfft2(r) * m, s=shape)
+    return lambda r: jnp.fft.irfft2(jnp.fft.rfft2(r, s=shape) * m,
+                                    s=shape)[..., :nx, :ny]
 
 
 def shear_x_preconditioner(operator, poisson):
