@@ -636,11 +636,15 @@ def _initial_times(times: np.ndarray, n: int) -> np.ndarray:
     return np.geomspace(first, span, n + 2)[1:-1]
 
 
+_PREFIT_CLIP = 30.0  # |log(value / reference)| the prefit can reach
+
+
 @functools.partial(jax.jit, static_argnums=0)
 def _prefit_loss(kind, theta, lag, apparent, g_ref, t_ref):
     # Clipped exponents and no constructor checks: the line search may probe wild
     # points, which must come back as large losses, not errors.
-    g_inf, g, tau = (c * jnp.exp(jnp.clip(theta[k], -30, 30)) for c, k in (
+    clip = _PREFIT_CLIP
+    g_inf, g, tau = (c * jnp.exp(jnp.clip(theta[k], -clip, clip)) for c, k in (
         (g_ref, "g_inf"), (g_ref, "g"), (t_ref, "tau")))
     if kind == "force":  # a held indentation: G_app(t) = G(t - t_0)
         relaxation = g_inf + jnp.sum(g[None, :] * jnp.exp(-lag[:, None] / tau[None, :]),
@@ -683,11 +687,14 @@ def _prefit(kind, lag, apparent, g_inf, arms, t_init, g_ref, t_ref, steps=200):
         theta = new
     if not float(_prefit_loss(kind, theta, *args)) < start:
         return None
-    tau = t_ref * np.exp(np.asarray(theta["tau"]))
+    # The values the loss saw: beyond the clip its gradient is zero and a line search
+    # can leave a log far out (-800 on an H200: tau = 0, and the start crashed).
+    theta = {k: np.clip(np.asarray(v), -_PREFIT_CLIP, _PREFIT_CLIP)
+             for k, v in theta.items()}
+    tau = t_ref * np.exp(theta["tau"])
     if np.any(np.diff(np.sort(tau)) <= 1e-6 * tau.max()):
         return None  # merged times: keep the plain heuristic
-    return (g_ref * float(np.exp(theta["g_inf"])), g_ref * np.exp(np.asarray(theta["g"])),
-            tau)
+    return g_ref * float(np.exp(theta["g_inf"])), g_ref * np.exp(theta["g"]), tau
 
 
 def _initial_guess(ev: _Evaluator, refs, fit_poisson, kind, times, target, n, t_init,

@@ -605,6 +605,30 @@ def test_weights():
         jc.fit_prony(bad, template, 1, _model=model, weights=-w)
 
 
+def test_a_prefit_step_far_beyond_its_clip_gives_a_valid_start(monkeypatch):
+    """The data-driven start refines the apparent moduli by an L-BFGS fit whose loss
+    clips the logs to +-30: beyond that its gradient is zero and a line search can
+    leave a log time far out (on an H200 one went to exp(-800) = 0 s, and
+    `fit_prony` raised "tau must be finite and > 0" before its first step). Here the
+    step is made to do that: the start holds the clipped value, a positive time."""
+    real_step = _fit._prefit_step
+
+    def wild(kind, theta, state, *args):
+        new, state, value = real_step(kind, theta, state, *args)
+        return {**new, "tau": new["tau"].at[-1].set(-800.0)}, state, value
+
+    monkeypatch.setattr(_fit, "_prefit_step", wild)
+    lag = np.linspace(0.0, 10.0, 40)
+    apparent = 1e6 * (1 + 2 * np.exp(-lag / 0.7))
+    refined = _fit._prefit("force", lag, apparent, 1e6, 2e6, np.array([0.3, 3.0]),
+                           3e6, 10.0, steps=3)
+    assert refined is not None
+    g_inf, g, tau = refined
+    assert np.all(np.isfinite(tau)) and np.all(tau > 0), tau
+    np.testing.assert_allclose(tau.min(), 10.0 * np.exp(-30.0), rtol=1e-12)
+    jc.Prony(g_inf, g, tau, NU)  # a valid material: no error
+
+
 def test_an_invalid_trial_material_stops_lm_without_raising(monkeypatch):
     """Inside the compiled LM solve a trial step can make an invalid material (e.g.
     two equal relaxation times: the constructor's runtime check fires and raises out
