@@ -25,12 +25,28 @@ import pytest  # noqa: E402
 from jaxcontact import enable_compilation_cache  # noqa: E402
 
 _SHARED_CACHE = "JAXCONTACT_TEST_CACHE_DIR"
+_FULL_OPTIMIZATION = "JAXCONTACT_TEST_FULL_OPTIMIZATION"
+
+
+def _quick_compile(config) -> bool:
+    """Whether this run compiles with JAX's `jax_disable_most_optimizations`: the
+    default selection (`-m 'not slow'`) unless `JAXCONTACT_TEST_FULL_OPTIMIZATION=1`.
+    Its programs are small and their time is mostly compilation; the flag leaves
+    XLA's graph passes (fusion, layout) as they are and lowers LLVM's optimisation
+    level (measured: tests/test_gradients.py 129 -> 90 s). The slow suite, the
+    benchmarks and users compile fully optimised."""
+    return (os.environ.get(_FULL_OPTIMIZATION) != "1"
+            and "not slow" in (config.option.markexpr or ""))
 
 
 def pytest_configure(config):
-    """One persistent compilation cache for the test processes of a run (a fresh
-    folder, removed at the end): a program one process compiled, another loads
-    instead of compiling it again. `JAXCONTACT_TEST_CACHE_DIR=off` leaves it out."""
+    """Quick compilation for the default selection (`_quick_compile`), and one
+    persistent compilation cache for the test processes of a run (a fresh folder,
+    removed at the end): a program one process compiled, another loads instead of
+    compiling it again. `JAXCONTACT_TEST_CACHE_DIR=off` leaves the cache out."""
+    if _quick_compile(config):
+        os.environ["JAX_DISABLE_MOST_OPTIMIZATIONS"] = "1"  # subprocesses too
+        jax.config.update("jax_disable_most_optimizations", True)
     if os.environ.get(_SHARED_CACHE) == "off":
         return
     if not hasattr(config, "workerinput") and _SHARED_CACHE not in os.environ:
