@@ -5,11 +5,12 @@ for one grid, computed once at construction, and applies them by FFT:
 
 - non-periodic grids (DC-FFT, Liu, Wang & Liu 2000): tractions are zero-padded to
   `Lx x Ly` (`padded_shape`: `2n`, or where that has a prime factor above 7 the
-  smallest length `>= 2n - 1` without one), the kernel is laid out in wrap-around order, and the
-  result is cropped back to `nx x ny`. The transforms are pruned: the forward transform runs its row FFTs
-  on the `nx` non-zero rows only, and the inverse transform runs its column FFTs on the
-  `nx` rows that are kept. This is exactly the padded linear convolution, at about half
-  the cost of `rfft2(s=(2nx, 2ny))` / `irfft2` at large `n`.
+  smallest length `>= 2n - 1` without one), the kernel is laid out in wrap-around
+  order, and the result is cropped back to `nx x ny`. The transforms are pruned: the
+  forward transform runs its row FFTs on the `nx` non-zero rows only, and the inverse
+  transform runs its column FFTs on the `nx` rows that are kept. This is exactly the
+  padded linear convolution, at about half the cost of `rfft2(s=(Lx, Ly))` / `irfft2`
+  at large `n`.
 - periodic grids: the spectra are the Fourier transforms of the continuous Boussinesq
   and Cerruti kernels, multiplied by the cell shape factor `sinc(kx dx/2) sinc(ky dy/2)`
   and summed over aliases; the mean (k = 0) displacement is set to zero (it is
@@ -228,7 +229,8 @@ class HalfSpace(eqx.Module):
 
     @property
     def fft_shape(self) -> tuple[int, int]:
-        """`(Lx, Ly)`: the FFT grid, the grid's shape if periodic, else `padded_shape`."""
+        """`(Lx, Ly)`: the FFT grid: the grid's shape if periodic, else
+        `padded_shape`."""
         return self.grid.shape if self.grid.periodic else padded_shape(self.grid.shape)
 
     def forward(self, field: Float[Array, "... nx ny"]):

@@ -209,7 +209,7 @@ class _JointOperator:
         wn = w_ky / n_par
         self.s_zz = wn * nn
         self.s_xx = wn * xx
-        self.s_zx = wn * compliance * zx
+        self.s_zx = wn * czx
         if nd == 2:
             self.s_xy, self.s_yy = wn * xy, wn * yy
             self.s_zy = wn * czy if czy is not None else None

@@ -17,8 +17,8 @@ are left out), with these differences:
   modulo the grid (the even modes of the padded spectra when these are `2n` long): a
   quarter of the transform size. A grid length with a prime factor above 7 is
   extended by zeros to the next length without one (`preconditioner_shape`; 113 ->
-  120: the transform of a prime length costs ~3.5x more). A preconditioner need not be exact: +14 % iterations, -25 % time
-  for the joint solver at 105^2;
+  120: the transform of a prime length costs ~3.5x more). A preconditioner need not
+  be exact: +14 % iterations, -25 % time for the joint solver at 105^2;
 - given the material (`compliance`, `poisson`), the unpadded spectra are raised to the
   CONTINUOUS half-space symbols where these are larger (`continuum_symbols`): on some
   of the lowest modes the wrapped spectra fall to 0.4-0.5 of the continuous symbols,
