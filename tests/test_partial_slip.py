@@ -604,6 +604,39 @@ def test_dense_reference_coupled_ramp():
     assert sol.stick[-1].any() and (sol.contact[-1] & ~sol.stick[-1]).any()
 
 
+def test_dense_reference_coupled_ramp_on_a_prime_grid():
+    """As `test_dense_reference_coupled_ramp` (full coupling, nu = 0.3, mu = 0.3) in 3
+    increments on 23 x 23 cells, a prime: the DC-FFT pads to 45 (not 2 x 23 = 46, whose
+    factor 23 makes the FFT slow) and the joint solver's preconditioner runs on 24 x 24
+    (`_operator.padded_shape`, `precondition.preconditioner_shape`). Against the dense
+    reference: float64 (rtol 1e-10) p and q to 1e-8 (measured 5e-11, 3e-10), the
+    approach to 1e-9 (1e-12); float32 (rtol 1e-5) p and q to 1e-4 (measured 5e-6,
+    2e-5), the approach to 1e-6 (1e-7); contact masks exactly and stick masks up to
+    marginal cells (measured: identical) in both."""
+    n = 23
+    size = DENSE_SPAN * hertz_radius()
+    h0 = rd.sphere_gap(n, size, R)
+    loads = W * np.arange(1, 4) / 3
+    ref = rd.solve_history(n, size, h0, G, NU, MU, W=loads, coupling="full",
+                           C=rd.dense_influence(n, size, NU))
+    for dtype, rtol, tol, tol_approach in ((jnp.float64, 1e-10, 1e-8, 1e-9),
+                                           (jnp.float32, 1e-5, 1e-4, 1e-6)):
+        def f(v):
+            return jnp.asarray(v, dtype)
+
+        sc = jc.Scene(jc.Grid((n, n), f(size)), jc.Sphere(f(R)),
+                      jc.Elastic(f(G), f(NU)), times=jnp.arange(3.0, dtype=dtype),
+                      normal=jc.Force(f(loads)), friction=MU, coupling="full")
+        sol = as_np(jc.solve(sc, rtol=rtol))
+        assert sol.pressure.dtype == dtype
+        check_converged(sol, SOLUTION_FIELDS)
+        dp, dq, n_diff = compare_with_dense(sol, ref, MU)
+        assert dp <= tol and dq <= tol, (dtype, dp, dq)
+        assert n_diff <= 8
+        np.testing.assert_allclose(sol.approach, ref["delta_z"], rtol=tol_approach)
+        assert sol.stick[-1].any() and (sol.contact[-1] & ~sol.stick[-1]).any()
+
+
 def test_dense_reference_cattaneo_mindlin():
     """Uncoupled, W then F_x = mu W / 2 with delta_y = 0 (both shear components solved,
     as in the reference), n = 24 over 2.5 a, rtol = 1e-10: p, q to 1e-8 (measured
