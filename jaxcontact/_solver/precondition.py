@@ -147,8 +147,6 @@ def unpadded_inverse(grid, padded_spectra, continuum=None):
     m = inverse_symbol(spectra)
     shape = preconditioner_shape(grid)
     nx, ny = grid.shape
-    if shape == grid.shape:
-        return lambda r: jnp.fft.irfft2(jnp.fft.rfft2(r) * m, s=shape)
     return lambda r: jnp.fft.irfft2(jnp.fft.rfft2(r, s=shape) * m,
                                     s=shape)[..., :nx, :ny]
 
