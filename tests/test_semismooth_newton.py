@@ -59,6 +59,7 @@ def _oblique_ramp(steps):
                     friction=0.3, coupling="full")
 
 
+@pytest.mark.slow  # two compilations of each solver (~15 s): a benchmark's peer
 @pytest.mark.parametrize("steps", [1, 2])
 def test_newton_and_joint_give_the_same_coupled_solution(newton, steps):
     scene = _oblique_ramp(steps)
