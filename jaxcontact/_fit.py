@@ -17,10 +17,11 @@ The start (unless `init=` is given) comes from the data: one elastic run of the 
 turns every sample into an apparent modulus, and a cheap least-squares Prony fit of
 `G(t)` (or `1/J(t)` under load control) to those moduli gives the series (see
 `_initial_guess`). The optimiser is optimistix's Levenberg-Marquardt on the residual
-(default when optimistix is installed; Jacobian by reverse mode through the contact
-solve's implicit adjoint; one compiled program), or (`optimiser="lbfgs"`) Adam (a few
-steps; the best point is kept), then L-BFGS (`optax.scale_by_lbfgs`, the direction of `optax.lbfgs`, memory 20) with
-an Armijo backtracking line search driven from Python. Every model evaluation goes
+(default when optimistix is installed; Jacobian by forward mode through the contact
+solve's implicit tangent solves, one per parameter; one compiled program), or
+(`optimiser="lbfgs"`) Adam (a few steps; the best point is kept), then L-BFGS
+(`optax.scale_by_lbfgs`, the direction of `optax.lbfgs`, memory 20) with an Armijo
+backtracking line search driven from Python. Every model evaluation goes
 through ONE compiled value-and-gradient function (the line search, the initial guess
 and the sensitivities reuse it), so a fit compiles the model once, and further fits of
 the same shapes (a noise study) compile nothing new.
@@ -55,6 +56,7 @@ from ._loading import Displacement, Force
 from ._material.prony import Prony, retardation_series
 from ._scene import Scene
 from ._solve import _operator_for, _warn_unstable_steps, solve
+from ._solver.implicit import ImplicitAdjoint
 from ._sweep import _traced_directions
 
 
@@ -238,17 +240,32 @@ def _residual(theta, args):
 @eqx.filter_jit
 def _lm_solve(theta, args, rtol, atol, max_steps):
     """`optimistix.least_squares` with `LevenbergMarquardt`: `(theta, result, steps)`.
-    The Jacobian comes from reverse mode (`jac="bwd"`: `jax.jacrev`, one adjoint per
-    sample, batched): the contact solve has a custom VJP and no forward mode.
-    Compiled once per problem shape; `throw=False`: a failure is a result code."""
+    The Jacobian comes from forward mode (`jac="fwd"`: `jax.jacfwd`, one tangent solve
+    per parameter, batched; the contact model's solves in
+    `ImplicitAdjoint(mode="forward")`, `_forward_model`): `p` tangent solves per LM
+    step instead of one adjoint per sample. Compiled once per problem shape;
+    `throw=False`: a failure is a result code."""
     return _lm_solve_unjitted(theta, args, rtol, atol, max_steps)
+
+
+def _forward_model(model):
+    """The contact model with its solves differentiated in forward mode (the options'
+    `adjoint`, or the default one, with `mode="forward"`); other models as they are."""
+    if not isinstance(model, _SceneModel):
+        return model
+    options = dict(model.options)
+    given = options.get("adjoint") or ImplicitAdjoint()
+    options["adjoint"] = dataclasses.replace(given, mode="forward")
+    return _SceneModel(model.kind, tuple(sorted(options.items())))
 
 
 def _lm_solve_unjitted(theta, args, rtol, atol, max_steps):
     import optimistix as optx
 
+    ctx, refs, target, scale, model, fit_poisson = args
+    args = (ctx, refs, target, scale, _forward_model(model), fit_poisson)
     sol = optx.least_squares(_residual, optx.LevenbergMarquardt(rtol=rtol, atol=atol),
-                             theta, args, options={"jac": "bwd"}, max_steps=max_steps,
+                             theta, args, options={"jac": "fwd"}, max_steps=max_steps,
                              throw=False)
     return sol.value, sol.result == optx.RESULTS.successful, sol.stats["num_steps"]
 
@@ -1003,13 +1020,14 @@ def fit_prony(
         - `"lbfgs"`: Adam, then L-BFGS with Armijo backtracking, driven from Python
           (the arguments `adam_steps` ... `precondition` are for it).
         - `"lm"`: Levenberg-Marquardt (`optimistix.LevenbergMarquardt` on the
-          relative residual, Jacobian by reverse mode, one compiled solve; at most
+          relative residual, Jacobian by forward mode, one compiled solve; at most
           `lm_steps` steps). Needs optimistix (`pip install "jaxcontact[fit]"`).
         - `"auto"`: L-BFGS, then LM from its result when that is not certified a
           minimum (see `PronyFit.converged`) and optimistix is installed.
-      Measured (float64, 2-core CPU shared with other jobs): from the default start
-      on the PMMA step, 64^2 x 40, L-BFGS 8.5 s compiled (9.6 s with compilation), LM
-      84 s (138 s): LM's Jacobian costs one adjoint per sample per step. From far
+      Measured (float64, 2-core CPU): from the default start on the PMMA step, 64^2
+      x 40, L-BFGS 8.5 s compiled (9.6 s with compilation; shared machine), LM 12.0 s
+      (25.4 s), 13 steps: its Jacobian costs one tangent solve per parameter per step
+      (33.1 s with one adjoint per sample, `benchmarks/README.md`). From far
       starts (1 arm, 1 % noise, the closed-form stand-in, 24 starts 0.2-5x off) LM
       reaches the minimum from every start; preconditioned L-BFGS stalls on creep
       data from 2 of 12 (one at its iteration bound, reported NOT converged), where
@@ -1335,8 +1353,9 @@ def fit_prony(
         used = "lbfgs"
         if optimiser == "auto" and _have_optimistix():
             # L-BFGS is fast from a good start (64^2 x 40, PMMA step, float64: 8.5 s
-            # against 84 s for LM, whose reverse-mode Jacobian costs one adjoint per
-            # sample per step); LM reaches the minimum from starts where L-BFGS stalls.
+            # against 12 s for LM, whose Jacobian costs one tangent solve per
+            # parameter per step); LM reaches the minimum from starts where L-BFGS
+            # stalls.
             # So LM takes over where L-BFGS' result is not certified (see below).
             _, _, c_auto, _ = ev.loss(theta)
             r_auto = (np.asarray(c_auto) - np.asarray(target)) / np.asarray(scale, float)

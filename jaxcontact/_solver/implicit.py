@@ -45,6 +45,7 @@ from typing import NamedTuple
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+from jax.flatten_util import ravel_pytree
 
 from .._solution import RESULTS
 from .base import AbstractStepSolver, StepGuess, StepProblem, applied_load
@@ -78,6 +79,15 @@ class ImplicitAdjoint(eqx.Module):
       applications; the faster on CPUs), `"batched"` (whole cycles, each a few large
       kernels: the faster on GPUs, 2x at 256^2 on an H200), or `None`: by the default
       backend (`benchmarks/README.md`, `gradients.py`).
+    - `mode`: `"reverse"` (default): a custom VJP, one adjoint solve per step and
+      cotangent (`jax.grad`, `jax.vjp`, `jax.jacrev`), each started from the next
+      step's adjoint; `"forward"`: a custom JVP, one tangent solve per step and
+      tangent direction (`jax.jvp`, `jax.jacfwd`). A Jacobian with more outputs than
+      inputs (a fit's curve of `nt` samples against a few parameters) costs `p`
+      tangent solves forwards against `nt` adjoint solves backwards. The tangent solve
+      is GMRES on the same frozen-set system, right-preconditioned as the adjoint's,
+      inside `jax.lax.custom_linear_solve`: reverse mode through it works too (the
+      transposed system by the same GMRES, from zero).
 
     A solve that does not reach `rtol` within `max_steps` is reported, never silent:
     `jc.solve(..., throw=True)` raises `RESULTS.adjoint_not_converged` when the
@@ -89,8 +99,11 @@ class ImplicitAdjoint(eqx.Module):
     restart: int = eqx.field(static=True, default=40)
     precondition: bool = eqx.field(static=True, default=True)
     gmres_method: str | None = eqx.field(static=True, default=None)
+    mode: str = eqx.field(static=True, default="reverse")
 
     def __check_init__(self):
+        if self.mode not in ("reverse", "forward"):
+            raise ValueError(f'mode must be "reverse" or "forward", got {self.mode!r}')
         if self.rtol is not None and not (0 < self.rtol < 1):
             raise ValueError(f"rtol must be in (0, 1), got {self.rtol!r}")
         if self.gmres_method not in (None, "incremental", "batched"):
@@ -378,13 +391,24 @@ def _transposed_preconditioner(operator, config, frozen, theta, precondition):
     identity. `M`: on the contact cells `k` times the full-plane inverse of the
     diagonal blocks of `C K` (`block_preconditioner`, as `JointPCG`; `K` is symmetric,
     so the same for the transpose), the identity elsewhere and on the load and
-    displacement unknowns.
+    displacement unknowns. A frictionless step (`nd = 0`, whose adjoint is solved by
+    CG; this serves its tangent solve): `k_z` times `normal.inverse_preconditioner`.
     """
     if not precondition:
         return lambda v: v
     contact, kz, kt = frozen[0], frozen[4], frozen[5]
     compliance, poisson = theta[0], theta[1]
     nd = config.nd
+    if nd == 0:
+        inverse_k = inverse_preconditioner(operator, operator.normal_spectrum(poisson),
+                                           poisson)
+
+        def apply_normal(v):
+            v_p, v_q, v_dz, v_dt = v
+            m = (kz / compliance) * inverse_k(jnp.where(contact, v_p, 0))
+            return jnp.where(contact, m, v_p), v_q, v_dz, v_dt
+
+        return apply_normal
     nn = compliance * operator.normal_spectrum(poisson)
     xx, _, yy = operator.tangential_blocks(poisson)
     inverse = block_preconditioner(
@@ -472,6 +496,59 @@ def _make_attach(config: _Spec, adjoint: ImplicitAdjoint, rtol: float, throw: bo
     return attach
 
 
+def _make_tangent(config: _Spec, adjoint: ImplicitAdjoint, rtol: float, throw: bool):
+    """A function `x, slip = attach(x, slip, frozen, theta, operator)` that returns
+    `x`, `slip` unchanged and whose JVP is the implicit one: the tangent `x_dot`
+    solves `(dF/dx) x_dot = -(dF/dtheta) theta_dot` on the frozen sets (GMRES,
+    right-preconditioned as the adjoint), `slip_dot` follows from `x_dot`. Only the
+    tangents of `theta` enter (`frozen` and the operator are held)."""
+
+    @jax.custom_jvp
+    def attach(x, slip, frozen, theta, operator):
+        return x, slip
+
+    @attach.defjvp
+    def attach_jvp(primals, tangents):
+        x, slip, frozen, theta, operator = primals
+        theta_dot = tangents[3]
+
+        def residual(x_, theta_):
+            return _residual(operator, config, frozen, x_, theta_)
+
+        _, f_dot = jax.jvp(lambda th: residual(x, th), (theta,), (theta_dot,))
+        _, linear = jax.linearize(lambda x_: residual(x_, theta), x)
+        precondition = _transposed_preconditioner(operator, config, frozen, theta,
+                                                  adjoint.precondition)
+        # On flat vectors: `custom_linear_solve` transposes only a right-hand side
+        # that is linear as a whole (some rows of `f_dot` are constant zeros).
+        b_flat, unravel = ravel_pytree(jax.tree.map(jnp.negative, f_dot))
+
+        def flat(fn):
+            return lambda v: ravel_pytree(fn(unravel(v)))[0]
+
+        def gmres(matvec, b):
+            v, ok = _right_preconditioned_gmres(
+                matvec, flat(precondition), b, jnp.zeros_like(b), rtol, adjoint.restart,
+                adjoint.max_steps, _gmres_method(adjoint))
+            if throw:
+                return eqx.error_if(v, ~ok, RESULTS[RESULTS.adjoint_not_converged])
+            return jnp.where(ok, v, jnp.nan)
+
+        # A transposable solve (the transposed system by the same GMRES): reverse
+        # mode through the forward rule works too (without the adjoint's warm starts).
+        x_dot = unravel(jax.lax.custom_linear_solve(flat(linear), b_flat, gmres, gmres))
+        if config.nd > 0:
+            kt = frozen[5]
+            _, slip_dot = jax.jvp(
+                lambda x_, th: _slip_out(operator, config, x_, th, kt), (x, theta),
+                (x_dot, theta_dot))
+        else:
+            slip_dot = jnp.zeros_like(slip)
+        return (x, slip), (x_dot, slip_dot)
+
+    return attach
+
+
 def differentiable_step(
     solver: AbstractStepSolver, problem: StepProblem, guess: StepGuess,
     adjoint_seed=None, *, adjoint: ImplicitAdjoint | None = None, throw: bool = True,
@@ -484,7 +561,8 @@ def differentiable_step(
     The forward solve runs on inputs with their derivatives stopped; the derivatives
     are attached afterwards by `_make_attach` (see the module docs). `adjoint_seed`
     (`None`, or the seed returned by the previous step) links the adjoint solves of
-    consecutive steps (warm start). `adjoint`: an `ImplicitAdjoint` (default one);
+    consecutive steps (warm start; in forward mode it passes through unchanged).
+    `adjoint`: an `ImplicitAdjoint` (default one);
     `throw`: a non-converged adjoint raises (`True`) or gives NaN cotangents.
 
     **Returns:** `(StepResult, seed)`, the seed to pass to the next step.
@@ -524,11 +602,17 @@ def differentiable_step(
              problem.previous_slip, jnp.asarray(problem.normal_target, dtype),
              jnp.asarray(problem.tangential_target, dtype))
     rtol = solver.tolerance(dtype) if adjoint.rtol is None else adjoint.rtol
-    attach = _make_attach(config, adjoint, rtol, throw)
     slip = res.slip if nd > 0 else jnp.zeros_like(res.slip)
     if adjoint_seed is None:
         adjoint_seed = empty_seed(res.pressure, res.shear)
-    (p, q, dz, dt), slip, seed = attach(x, slip, frozen, theta, operator, adjoint_seed)
+    if adjoint.mode == "forward":
+        attach = _make_tangent(config, adjoint, rtol, throw)
+        (p, q, dz, dt), slip = attach(x, slip, frozen, theta, operator)
+        seed = adjoint_seed
+    else:
+        attach = _make_attach(config, adjoint, rtol, throw)
+        (p, q, dz, dt), slip, seed = attach(x, slip, frozen, theta, operator,
+                                            adjoint_seed)
     result = res.replace(pressure=p, shear=q, approach=dz * kz, delta_t=dt * kt,
                          slip=slip)
     return result, seed

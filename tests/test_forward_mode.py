@@ -1,0 +1,95 @@
+"""Forward-mode derivatives of `jc.solve` (`jc.ImplicitAdjoint(mode="forward")`): a
+custom JVP that solves the frozen-set system `(dF/dx) x_dot = -(dF/dtheta) theta_dot`
+per step, against the reverse mode (the custom VJP's adjoint solve of the transposed
+system, itself checked against finite differences in test_gradients.py).
+
+Two independent linear solves of two different systems (a matrix and its transpose)
+must give one Jacobian: asked to 1e-6 relative (tangent and adjoint solves at rtol
+1e-10, the forward solve at 1e-12).
+"""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxcontact as jc
+
+
+R, W, G, NU = 10e-3, 0.15, 1.93e6, 0.3
+A0 = float(jc.Hertz(R, W, G, NU).contact_radius)
+FORWARD = jc.ImplicitAdjoint(mode="forward", rtol=1e-10)
+REVERSE = jc.ImplicitAdjoint(rtol=1e-10)
+
+
+def _creep_curve(adjoint):
+    """Zener creep under a ramped load, 16^2 x 6: the approach history (6 samples)
+    w.r.t. (mu_0, tau, poisson)."""
+    grid = jc.Grid((16, 16), 4 * A0)
+    times = jnp.linspace(0.0, 0.03, 6)
+
+    def curve(x):
+        mu_0, tau, poisson = x
+        material = jc.Zener(mu_inf=G, mu_0=mu_0, tau=tau, poisson=poisson)
+        scene = jc.Scene(grid, jc.Sphere(R), material, times,
+                         jc.Force(W * jnp.linspace(0.3, 1.0, 6)))
+        return 1e6 * jc.solve(scene, rtol=1e-12, adjoint=adjoint).approach
+
+    return curve
+
+
+def test_forward_jacobian_of_a_creep_curve_equals_the_reverse_one():
+    x = jnp.array([G / 4, 0.01, NU])
+    forward = np.asarray(jax.jacfwd(_creep_curve(FORWARD))(x))
+    reverse = np.asarray(jax.jacrev(_creep_curve(REVERSE))(x))
+    assert forward.shape == (6, 3)
+    assert np.all(np.isfinite(forward))
+    scale = np.abs(reverse).max(axis=0)  # per parameter (columns differ in units)
+    assert np.all(np.abs(forward - reverse) <= 1e-6 * scale), (forward, reverse)
+
+
+@pytest.mark.parametrize("coupling", ["x", "full"])
+def test_forward_and_reverse_agree_on_a_coupled_partial_slip_history(coupling):
+    """Two steps of a Zener body under W and a tangential load (partial slip): the
+    tangent of (poisson, friction, F) along t, dotted with a cotangent v, equals the
+    cotangent's reverse-mode product dotted with t."""
+    grid = jc.Grid((16, 16), 4 * A0)
+    times = jnp.linspace(0.0, 0.02, 2)
+
+    def outputs(adjoint):
+        def f(x):
+            poisson, friction, force = x
+            material = jc.Zener(mu_inf=G, mu_0=G / 3, tau=0.01, poisson=poisson)
+            scene = jc.Scene(grid, jc.Sphere(R), material, times, jc.Force(W),
+                             x=jc.Force(force * jnp.array([0.5, 1.0])),
+                             friction=friction, coupling=coupling)
+            sol = jc.solve(scene, rtol=1e-12, scheme="linear", adjoint=adjoint)
+            return jnp.concatenate([1e6 * sol.tangential_displacement[:, 0],
+                                    1e6 * sol.approach])
+        return f
+
+    x = jnp.array([NU, 0.3, 0.5 * 0.3 * W])
+    t = jnp.array([0.01, 0.02, 0.1 * 0.3 * W])  # a mixed direction
+    value, tangent = jax.jvp(outputs(FORWARD), (x,), (t,))
+    v = jnp.array([1.0, -0.5, 0.3, 2.0])
+    _, vjp = jax.vjp(outputs(REVERSE), x)
+    (cotangent,) = vjp(v)
+    lhs, rhs = float(jnp.dot(v, tangent)), float(jnp.dot(cotangent, t))
+    assert np.isfinite(lhs)
+    assert abs(lhs - rhs) <= 1e-6 * (abs(rhs) + float(jnp.linalg.norm(value)) * 1e-3)
+
+
+def test_reverse_mode_through_the_forward_rule_gives_the_reverse_gradient():
+    """`jax.grad` of a forward-mode solve transposes its tangent solve
+    (`custom_linear_solve`): the same gradient as the custom VJP."""
+    x = jnp.array([G / 4, 0.01, NU])
+    weights = jnp.linspace(1.0, 2.0, 6)
+    through_forward = jax.grad(lambda x: jnp.dot(weights, _creep_curve(FORWARD)(x)))(x)
+    reverse = jax.grad(lambda x: jnp.dot(weights, _creep_curve(REVERSE)(x)))(x)
+    assert np.allclose(np.asarray(through_forward), np.asarray(reverse), rtol=1e-6,
+                       atol=0)
+
+
+def test_forward_mode_is_checked_by_name():
+    with pytest.raises(ValueError, match="mode"):
+        jc.ImplicitAdjoint(mode="sideways")
