@@ -520,7 +520,8 @@ def _make_tangent(config: _Spec, adjoint: ImplicitAdjoint, rtol: float, throw: b
         precondition = _transposed_preconditioner(operator, config, frozen, theta,
                                                   adjoint.precondition)
         # On flat vectors: `custom_linear_solve` transposes only a right-hand side
-        # that is linear as a whole (some rows of `f_dot` are constant zeros).
+        # that is linear as a whole (some rows of `f_dot` are constant zeros). The
+        # rows of `F` and the unknowns `x` share one structure: one `unravel`.
         b_flat, unravel = ravel_pytree(jax.tree.map(jnp.negative, f_dot))
 
         def flat(fn):
