@@ -24,7 +24,7 @@ Usage::
     python benchmarks/fit.py --n 32 --nt 20 --optimiser lm
     python benchmarks/fit.py --n 16 --nt 20 --batch 16   # -> results/fit_batch.json
 
-Results go to `benchmarks/results/fit.json`.
+Results go to `benchmarks/results/fit.json` (`--batch`: `fit_batch.json`), or `--out`.
 """
 
 import argparse
@@ -139,14 +139,17 @@ def main():
     parser.add_argument("--optimiser", default="both", choices=("lm", "lbfgs", "both"))
     parser.add_argument("--batch", type=int, default=0,
                         help="time a batch of this many curves instead")
-    parser.add_argument("--out", default=str(Path(__file__).parent / "results" / "fit.json"))
+    parser.add_argument("--out", default=None,
+                        help="JSON path (default results/fit.json, with --batch "
+                             "results/fit_batch.json)")
     args = parser.parse_args()
     if args.batch:
         result = {"machine": {"platform": platform.platform(),
                               "cpu_count": os.cpu_count(), "jax": jax.__version__,
                               "device": str(jax.devices()[0])},
                   "dtype": "float64", "case": run_batch(args.n, args.nt, args.batch)}
-        out = Path(args.out).with_name("fit_batch.json")
+        out = Path(args.out or Path(__file__).parent / "results" / "fit_batch.json")
+        out.parent.mkdir(parents=True, exist_ok=True)
         out.write_text(json.dumps(result, indent=2))
         print("wrote", out)
         return
@@ -166,9 +169,10 @@ def main():
         "dtype": "float64",
         "cases": cases,
     }
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps(result, indent=2))
-    print("wrote", args.out)
+    out = Path(args.out or Path(__file__).parent / "results" / "fit.json")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(result, indent=2))
+    print("wrote", out)
 
 
 if __name__ == "__main__":
