@@ -315,9 +315,10 @@ def _stack(trees):
 
 def fit_prony_batch(data, scene_template: Scene, n_terms: int = 2, *, weights=None,
                     lm_steps: int = 100, client=None, chunk_size: int | None = None,
-                    **options) -> list:
+                    vectorize: bool | None = None, **options) -> list:
     """Fit a Prony series to each of many curves of one shape at once: the
-    Levenberg-Marquardt solves of all curves run as ONE compiled, vmapped program.
+    Levenberg-Marquardt solves of all curves run as ONE compiled, vmapped program
+    (on an accelerator; on a CPU one curve after another, see `vectorize`).
 
     **Main arguments:**
 
@@ -343,6 +344,13 @@ def fit_prony_batch(data, scene_template: Scene, n_terms: int = 2, *, weights=No
       the number of curves.
     - `chunk_size`: curves per chunk (a positive integer); default: the curves spread
       evenly over the workers connected now. Only with `client`.
+    - `vectorize`: `True`: one vmapped LM solve of all curves; `False`: `fit_prony(...,
+      optimiser="lm")` curve by curve (one compilation for all: one shape); `None`
+      (default): `True` unless JAX's default backend is the CPU. Measured on 2 CPU
+      cores (64^2 x 40, 16 curves, float64): the loop 412 s, the vmapped solve not
+      finished after 37 min: under `vmap` every LM step and inner contact solve runs
+      to the slowest curve's count, and a CPU has no idle lanes for the batch
+      (`benchmarks/notes/fit_real_files.md`).
 
     **Returns:** a list of `jc.PronyFit`, one per curve, each as `jc.fit_prony(...,
     optimiser="lm")` would return it: the same start (from each curve's data), the
@@ -375,19 +383,27 @@ def fit_prony_batch(data, scene_template: Scene, n_terms: int = 2, *, weights=No
     if len(weights) != len(data) or len(inits) != len(data):
         raise ValueError(f"fit_prony_batch: weights and init need one entry per curve "
                          f"({len(data)})")
+    if vectorize is not None and not isinstance(vectorize, bool):
+        raise TypeError(f"vectorize must be True, False or None, got {vectorize!r}")
     if client is not None:
         from ._sweep_dask import check_client, fit_on_client
 
         check_client(client, chunk_size, "jc.fit_prony_batch")
         return fit_on_client(fit_prony_batch, data, scene_template, n_terms, weights,
-                             inits, lm_steps, options, client, chunk_size)
+                             inits, lm_steps, {**options, "vectorize": vectorize},
+                             client, chunk_size)
     if chunk_size is not None:
         raise ValueError(f"fit_prony_batch: chunk_size={chunk_size!r} needs a client")
+    if vectorize is None:
+        vectorize = jax.default_backend() != "cpu"
 
     def one(i, lm):
         return fit_prony(data[i], scene_template, n_terms, weights=weights[i],
                          init=inits[i], optimiser="lm", lm_steps=lm_steps, _lm=lm,
                          **options)
+
+    if not vectorize:
+        return [one(i, None) for i in range(len(data))]
 
     # -- Set-up of every curve (the start from its data) -----------------------------
     thetas, args = [], []

@@ -735,12 +735,21 @@ def test_batch_equals_fits_one_by_one_on_the_closed_form_model():
         data.append(jc.IndentationData(times, force=force, depth=delta))
         models.append((fn, ctx))
     # one stand-in model for all (its context: the common times and indentation)
-    fits = jc.fit_prony_batch(data, template, 2, _model=models[0])
+    fits = jc.fit_prony_batch(data, template, 2, _model=models[0], vectorize=True)
     singles = [jc.fit_prony(d, template, 2, optimiser="lm", _model=models[0])
                for d in data]
     _batch_matches_singles(fits, singles)
     # the curves differ: the batch did not fit one curve three times
     assert len({round(float(f.material.g_inf), 3) for f in fits}) == 3
+    # Looped (the CPU default): each curve's own fit, to the last bit.
+    looped = jc.fit_prony_batch(data, template, 2, _model=models[0], vectorize=False)
+    for a, b in zip(looped, singles, strict=True):
+        assert a.lm_steps == b.lm_steps
+        assert np.array_equal(params(a.material), params(b.material))
+    if jax.default_backend() == "cpu":
+        default = jc.fit_prony_batch(data, template, 2, _model=models[0])
+        assert all(np.array_equal(params(a.material), params(b.material))
+                   for a, b in zip(default, looped, strict=True))
 
 
 def test_batch_rejects_curves_of_different_shapes():
@@ -752,6 +761,8 @@ def test_batch_rejects_curves_of_different_shapes():
         jc.fit_prony_batch([data], template, 2, optimiser="lbfgs", _model=model)
     with pytest.raises(TypeError, match="IndentationData"):
         jc.fit_prony_batch([], template, 2)
+    with pytest.raises(TypeError, match="vectorize"):
+        jc.fit_prony_batch([data], template, 2, _model=model, vectorize="yes")
 
 
 @pytest.mark.slow
@@ -779,6 +790,6 @@ def test_batch_equals_fits_one_by_one_through_the_contact_model():
         data.append(jc.IndentationData(times, force=force, depth=delta))
     template = jc.Scene(grid, jc.Sphere(R), jc.Elastic(1e9, NU), times,
                         normal=jc.Displacement(delta))
-    fits = jc.fit_prony_batch(data, template, 1)
+    fits = jc.fit_prony_batch(data, template, 1, vectorize=True)
     singles = [jc.fit_prony(d, template, 1, optimiser="lm") for d in data]
     _batch_matches_singles(fits, singles, same_steps=False)

@@ -48,6 +48,7 @@ def test_forward_jacobian_of_a_creep_curve_equals_the_reverse_one():
     assert np.all(np.abs(forward - reverse) <= 1e-6 * scale), (forward, reverse)
 
 
+@pytest.mark.slow  # ~35 s for both couplings (four programs); the suite is over time
 @pytest.mark.parametrize("coupling", ["x", "full"])
 def test_forward_and_reverse_agree_on_a_coupled_partial_slip_history(coupling):
     """Two steps of a Zener body under W and a tangential load (partial slip): the
