@@ -426,6 +426,14 @@ def _transposed_preconditioner(operator, config, frozen, theta, precondition):
     return apply
 
 
+def _reported(solution, ok, throw: bool):
+    """A linear solve's `solution` (a pytree) as the caller sees it: raises
+    `RESULTS.adjoint_not_converged` where not `ok` (`throw`), else NaN there."""
+    if throw:
+        return eqx.error_if(solution, ~ok, RESULTS[RESULTS.adjoint_not_converged])
+    return jax.tree.map(lambda v: jnp.where(ok, v, jnp.nan), solution)
+
+
 def _make_attach(config: _Spec, adjoint: ImplicitAdjoint, rtol: float, throw: bool):
     """A function `x, slip, seed = attach(x, slip, frozen, theta, operator, seed)` that
     returns `x`, `slip` unchanged and whose vector-Jacobian product is the implicit one.
@@ -481,10 +489,7 @@ def _make_attach(config: _Spec, adjoint: ImplicitAdjoint, rtol: float, throw: bo
                 lam, ok = by_cg()
         else:
             lam, ok = by_gmres()
-        if throw:
-            lam = eqx.error_if(lam, ~ok, RESULTS[RESULTS.adjoint_not_converged])
-        else:
-            lam = jax.tree.map(lambda v: jnp.where(ok, v, jnp.nan), lam)
+        lam = _reported(lam, ok, throw)
         theta_bar = residual_vjp(lam)[1]
         theta_bar = jax.tree.map(jnp.negative, theta_bar)
         if theta_extra is not None:
@@ -512,11 +517,14 @@ def _make_tangent(config: _Spec, adjoint: ImplicitAdjoint, rtol: float, throw: b
         x, slip, frozen, theta, operator = primals
         theta_dot = tangents[3]
 
-        def residual(x_, theta_):
-            return _residual(operator, config, frozen, x_, theta_)
+        # One linearisation in (x, theta): dF/dtheta theta_dot and the map dF/dx.
+        _, both = jax.linearize(
+            lambda x_, th: _residual(operator, config, frozen, x_, th), x, theta)
+        f_dot = both(jax.tree.map(jnp.zeros_like, x), theta_dot)
+        zero_theta = jax.tree.map(jnp.zeros_like, theta)
 
-        _, f_dot = jax.jvp(lambda th: residual(x, th), (theta,), (theta_dot,))
-        _, linear = jax.linearize(lambda x_: residual(x_, theta), x)
+        def linear(v):
+            return both(v, zero_theta)
         precondition = _transposed_preconditioner(operator, config, frozen, theta,
                                                   adjoint.precondition)
         # On flat vectors: `custom_linear_solve` transposes only a right-hand side
@@ -531,9 +539,7 @@ def _make_tangent(config: _Spec, adjoint: ImplicitAdjoint, rtol: float, throw: b
             v, ok = _right_preconditioned_gmres(
                 matvec, flat(precondition), b, jnp.zeros_like(b), rtol, adjoint.restart,
                 adjoint.max_steps, _gmres_method(adjoint))
-            if throw:
-                return eqx.error_if(v, ~ok, RESULTS[RESULTS.adjoint_not_converged])
-            return jnp.where(ok, v, jnp.nan)
+            return _reported(v, ok, throw)
 
         # A transposable solve (the transposed system by the same GMRES): reverse
         # mode through the forward rule works too (without the adjoint's warm starts).
