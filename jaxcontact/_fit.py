@@ -50,6 +50,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 from jax.flatten_util import ravel_pytree
+from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from ._indenter import Sphere
 from ._loading import Displacement, Force
@@ -57,7 +58,7 @@ from ._material.prony import Prony, retardation_series
 from ._scene import Scene
 from ._solve import _operator_for, _warn_unstable_steps, solve
 from ._solver.implicit import ImplicitAdjoint
-from ._sweep import _traced_directions
+from ._sweep import _AXIS, _pad, _traced_directions
 
 
 _MAX_STEP = 1.0  # largest change of a log-parameter in one L-BFGS step
@@ -275,7 +276,8 @@ def _lm_solve_batch(theta, args, axes, rtol, atol, max_steps):
     """`_lm_solve` over a batch of curves: `jax.vmap` of the whole Levenberg-Marquardt
     solve (one compiled program; the loop runs until its slowest member, the others
     held at their end point). `theta`: every leaf with a leading batch axis; `args`:
-    `_residual`'s arguments, the leaves whose `axes` entry is 0 batched."""
+    `_residual`'s arguments, the leaves whose `axes` entry is 0 batched. Inputs
+    sharded along the batch axis are computed where they lie (XLA's partitioner)."""
     return eqx.filter_vmap(
         lambda th, a: _lm_solve_unjitted(th, a, rtol, atol, max_steps),
         in_axes=(0, axes))(theta, args)
@@ -315,10 +317,11 @@ def _stack(trees):
 
 def fit_prony_batch(data, scene_template: Scene, n_terms: int = 2, *, weights=None,
                     lm_steps: int = 100, client=None, chunk_size: int | None = None,
-                    vectorize: bool | None = None, **options) -> list:
+                    vectorize: bool | None = None, devices=None, **options) -> list:
     """Fit a Prony series to each of many curves of one shape at once: the
-    Levenberg-Marquardt solves of all curves run as ONE compiled, vmapped program
-    (on an accelerator; on a CPU one curve after another, see `vectorize`).
+    Levenberg-Marquardt solves of all curves run as ONE compiled, vmapped program,
+    sharded over devices (on accelerators; on a CPU one curve after another, see
+    `vectorize`).
 
     **Main arguments:**
 
@@ -350,7 +353,13 @@ def fit_prony_batch(data, scene_template: Scene, n_terms: int = 2, *, weights=No
       cores (64^2 x 40, 16 curves, float64): the loop 412 s, the vmapped solve not
       finished after 37 min: under `vmap` every LM step and inner contact solve runs
       to the slowest curve's count, and a CPU has no idle lanes for the batch
-      (`benchmarks/notes/fit_real_files.md`).
+      (`benchmarks/notes/fit_real_files.md`). Given `devices`, `None` means `True`.
+    - `devices`: the devices to shard the vmapped batch over (as `jc.sweep`: the
+      curves padded to a multiple of their number by repeating the last one, each
+      device fitting its slice; unlike `jc.sweep` the devices step together, one LM
+      loop for the whole batch, the slowest curve setting its length); default
+      `jax.devices()`. Not with `vectorize=False` or `client` (each worker shards over
+      its own devices).
 
     **Returns:** a list of `jc.PronyFit`, one per curve, each as `jc.fit_prony(...,
     optimiser="lm")` would return it: the same start (from each curve's data), the
@@ -385,6 +394,9 @@ def fit_prony_batch(data, scene_template: Scene, n_terms: int = 2, *, weights=No
                          f"({len(data)})")
     if vectorize is not None and not isinstance(vectorize, bool):
         raise TypeError(f"vectorize must be True, False or None, got {vectorize!r}")
+    if devices is not None and (client is not None or vectorize is False):
+        raise ValueError("fit_prony_batch: devices shard the vmapped batch; not with "
+                         f"client or vectorize=False, got devices={devices!r}")
     if client is not None:
         from ._sweep_dask import check_client, fit_on_client
 
@@ -395,7 +407,10 @@ def fit_prony_batch(data, scene_template: Scene, n_terms: int = 2, *, weights=No
     if chunk_size is not None:
         raise ValueError(f"fit_prony_batch: chunk_size={chunk_size!r} needs a client")
     if vectorize is None:
-        vectorize = jax.default_backend() != "cpu"
+        vectorize = devices is not None or jax.default_backend() != "cpu"
+    devices = list(jax.devices() if devices is None else devices)
+    if not devices:
+        raise ValueError("fit_prony_batch: devices is empty")
 
     def one(i, lm):
         return fit_prony(data[i], scene_template, n_terms, weights=weights[i],
@@ -418,9 +433,23 @@ def fit_prony_batch(data, scene_template: Scene, n_terms: int = 2, *, weights=No
         args.append(a)
     dtype = scene_template.grid.size.dtype
 
-    # -- One batched LM solve --------------------------------------------------------
+    # -- One batched LM solve, padded to a multiple of the devices and sharded --------
     stacked_args, axes = _stack(args)
     theta_b = jax.tree.map(lambda *x: jnp.stack(x), *thetas)
+    padded = math.ceil(len(data) / len(devices)) * len(devices)
+    theta_b = jax.tree.map(lambda x: _pad(x, padded), theta_b)
+    stacked_args = jax.tree.map(lambda x, a: _pad(x, padded) if a == 0 else x,
+                                stacked_args, axes, is_leaf=lambda x: x is None)
+    # `jax.shard_map` (as in `jc.sweep`) fails inside lineax's linear solves (its
+    # structure check compares the manual axes' shardings: lineax issue 185), so the
+    # batch axis is sharded for XLA's partitioner: the devices step together.
+    mesh = Mesh(np.array(devices), (_AXIS,))
+    along = NamedSharding(mesh, PartitionSpec(_AXIS))
+    same = NamedSharding(mesh, PartitionSpec())
+    theta_b = jax.device_put(theta_b, along)
+    stacked_args = jax.tree.map(
+        lambda x, a: jax.device_put(x, along if a == 0 else same) if eqx.is_array(x)
+        else x, stacked_args, axes, is_leaf=lambda x: x is None)
     rtol = 1e-8 if jnp.finfo(dtype).bits >= 64 else 1e-4
     new, ok, steps = _lm_solve_batch(theta_b, stacked_args, axes, rtol, 0.1 * rtol,
                                      lm_steps)

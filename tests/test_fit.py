@@ -20,6 +20,11 @@ nu = 0.38; built here from the paper's creep form (Eq. 28) with `jc.Prony.from_c
 """
 
 import functools
+import json
+import os
+import subprocess
+import sys
+import textwrap
 import time
 
 import jax
@@ -719,9 +724,10 @@ def _batch_matches_singles(fits, singles, same_steps=True):
             np.testing.assert_allclose(a.std[key], b.std[key], rtol=1e-6)
 
 
-def test_batch_equals_fits_one_by_one_on_the_closed_form_model():
-    """Three noisy step curves (different materials, 1 % noise) of one shape: the
-    batched LM (one vmapped program) gives each curve's own fit."""
+def three_step_curves():
+    """`(data, template, model)`: three noisy step curves (different materials, 1 %
+    noise) of one shape, and one stand-in model for all (its context: the common
+    times and indentation)."""
     rng = np.random.default_rng(3)
     data, models = [], []
     for scale in (1.0, 0.5, 2.0):
@@ -734,7 +740,14 @@ def test_batch_equals_fits_one_by_one_on_the_closed_form_model():
         force = force * (1 + 0.01 * rng.standard_normal(force.shape))
         data.append(jc.IndentationData(times, force=force, depth=delta))
         models.append((fn, ctx))
-    # one stand-in model for all (its context: the common times and indentation)
+    return data, template, models[0]
+
+
+def test_batch_equals_fits_one_by_one_on_the_closed_form_model():
+    """Three noisy step curves of one shape: the batched LM (one vmapped program)
+    gives each curve's own fit."""
+    data, template, model = three_step_curves()
+    models = [model]
     fits = jc.fit_prony_batch(data, template, 2, _model=models[0], vectorize=True)
     singles = [jc.fit_prony(d, template, 2, optimiser="lm", _model=models[0])
                for d in data]
@@ -752,6 +765,43 @@ def test_batch_equals_fits_one_by_one_on_the_closed_form_model():
                    for a, b in zip(default, looped, strict=True))
 
 
+_SHARDED_BATCH = textwrap.dedent(
+    """
+    import json, sys
+    import jax, numpy as np
+    jax.config.update("jax_enable_x64", True)
+    sys.path.insert(0, {tests!r})
+    import test_fit as t
+    import jaxcontact as jc
+    assert len(jax.devices()) == 2, jax.devices()
+    data, template, model = t.three_step_curves()
+    fits = jc.fit_prony_batch(data, template, 2, _model=model, devices=jax.devices())
+    singles = [jc.fit_prony(d, template, 2, optimiser="lm", _model=model)
+               for d in data]
+    t._batch_matches_singles(fits, singles, same_steps=False)
+    print(json.dumps({{"devices": len(jax.devices()),
+                      "g_inf": [float(f.material.g_inf) for f in fits]}}))
+    """
+)
+
+
+def test_batch_shards_over_two_cpu_devices():
+    """Three curves padded to four and sharded over two forced host devices, in a
+    fresh process (`devices=`: vmapped even on a CPU): each curve's own fit, as the
+    single fits in that process give it (parameters to 1e-8 in their logs)."""
+    code = _SHARDED_BATCH.format(tests=os.path.dirname(__file__))
+    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=2",
+               JAX_PLATFORMS="cpu")
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    env["PYTHONPATH"] = os.pathsep.join([root, env.get("PYTHONPATH", "")])
+    done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                          text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    out = json.loads(done.stdout.strip().splitlines()[-1])
+    assert out["devices"] == 2
+    assert len({round(g, 3) for g in out["g_inf"]}) == 3  # three different curves
+
+
 def test_batch_rejects_curves_of_different_shapes():
     data, template, model = surrogate_case("force")
     short, _, _ = surrogate_case("force", nt=20)
@@ -763,6 +813,11 @@ def test_batch_rejects_curves_of_different_shapes():
         jc.fit_prony_batch([], template, 2)
     with pytest.raises(TypeError, match="vectorize"):
         jc.fit_prony_batch([data], template, 2, _model=model, vectorize="yes")
+    with pytest.raises(ValueError, match="devices is empty"):
+        jc.fit_prony_batch([data], template, 2, _model=model, devices=[])
+    with pytest.raises(ValueError, match="not with client or vectorize=False"):
+        jc.fit_prony_batch([data], template, 2, _model=model, vectorize=False,
+                           devices=jax.devices())
 
 
 @pytest.mark.slow
