@@ -1069,10 +1069,10 @@ def fit_prony(
           `lm_steps` steps). Needs optimistix (`pip install "jaxcontact[fit]"`).
         - `"auto"`: L-BFGS, then LM from its result when that is not certified a
           minimum (see `PronyFit.converged`) and optimistix is installed.
-      Measured (float64, 2-core CPU): from the default start on the PMMA step, 64^2
-      x 40, L-BFGS 8.5 s compiled (9.6 s with compilation; shared machine), LM 12.0 s
-      (25.4 s), 13 steps: its Jacobian costs one tangent solve per parameter per step
-      (33.1 s with one adjoint per sample, `benchmarks/README.md`). From far
+      Measured (float64, quiet 2-core CPU): from the default start on the PMMA step,
+      64^2 x 40, L-BFGS 6.8 s compiled (13.7 s with compilation), LM 7.1 s (18.7 s),
+      13 steps: its Jacobian costs one tangent solve per parameter per step (33.1 s
+      with one adjoint per sample, `benchmarks/README.md`). From far
       starts (1 arm, 1 % noise, the closed-form stand-in, 24 starts 0.2-5x off) LM
       reaches the minimum from every start; preconditioned L-BFGS stalls on creep
       data from 2 of 12 (one at its iteration bound, reported NOT converged), where
@@ -1397,8 +1397,8 @@ def fit_prony(
             optimise, theta, adam_steps)
         used = "lbfgs"
         if optimiser == "auto" and _have_optimistix():
-            # L-BFGS is fast from a good start (64^2 x 40, PMMA step, float64: 8.5 s
-            # against 12 s for LM, whose Jacobian costs one tangent solve per
+            # L-BFGS is fast from a good start (64^2 x 40, PMMA step, float64: 6.8 s
+            # against 7.1 s for LM, whose Jacobian costs one tangent solve per
             # parameter per step); LM reaches the minimum from starts where L-BFGS
             # stalls.
             # So LM takes over where L-BFGS' result is not certified (see below).

@@ -469,3 +469,27 @@ def test_lee_radok_start_recovers_the_generating_series():
                         poisson=0.5)
     with pytest.raises(ValueError, match="init must be"):
         jc.fit_prony(data, template, 1, init="hertz")
+
+
+@pytest.mark.slow
+def test_creep_file_hold_within_the_noise_at_64(tmp_path, capsys, monkeypatch):
+    """The issue's target on the creep file: `jaxcontact fit --n 64 --arms 4 --samples
+    40,100,8 --segments approach,hold` converges and the model reproduces the raw hold
+    samples to within 1.5 x their white noise (measured 1.41; 3 arms 1.54, 2 arms at
+    32^2 1.98; the closed-form floor is 1.22 with 4 arms:
+    `benchmarks/notes/fit_real_files.md`), with the grid's bias (the fitted curve on
+    128^2) below the raw noise (measured 0.35 x)."""
+    import json
+
+    pytest.importorskip("afmformats")
+    from jaxcontact._cli import main
+
+    monkeypatch.setenv("JAXCONTACT_CACHE_DIR", str(tmp_path / "xla"))
+    code = main(["fit", CREEP, "--radius", "5e-6", "--n", "64", "--arms", "4",
+                 "--samples", "40,100,8", "--segments", "approach,hold",
+                 "--out", str(tmp_path)])
+    capsys.readouterr()
+    js = json.loads((tmp_path / "fmt-jpk-cc_pr14-polymergel-2021_fit.json").read_text())
+    assert code == 0 and js["converged"], js.get("message")
+    assert js["hold_residual_over_noise_raw"] <= 1.5, js["hold_residual_over_noise_raw"]
+    assert js["discretisation_rms"] < js["noise_raw"]

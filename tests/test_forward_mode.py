@@ -22,26 +22,39 @@ FORWARD = jc.ImplicitAdjoint(mode="forward", rtol=1e-10)
 REVERSE = jc.ImplicitAdjoint(rtol=1e-10)
 
 
-def _creep_curve(adjoint):
-    """Zener creep under a ramped load, 16^2 x 6: the approach history (6 samples)
-    w.r.t. (mu_0, tau, poisson)."""
+LOADINGS = {
+    # a ramped load; the load back to zero (steps without contact, where the approach
+    # follows the surface's recovery); a ramped approach (the force is the output)
+    "force": (jc.Force, W * jnp.linspace(0.3, 1.0, 6)),
+    "unload": (jc.Force, W * jnp.array([0.3, 0.6, 1.0, 0.5, 0.0, 0.0])),
+    "displacement": (jc.Displacement, 2e-5 * jnp.linspace(0.3, 1.0, 6)),
+}
+
+
+def _creep_curve(adjoint, loading="force"):
+    """Zener body, 16^2 x 6, under `LOADINGS[loading]`: the approach (load control)
+    or the force (displacement control) history w.r.t. (mu_0, tau, poisson)."""
     grid = jc.Grid((16, 16), 4 * A0)
     times = jnp.linspace(0.0, 0.03, 6)
+    control, values = LOADINGS[loading]
 
     def curve(x):
         mu_0, tau, poisson = x
         material = jc.Zener(mu_inf=G, mu_0=mu_0, tau=tau, poisson=poisson)
-        scene = jc.Scene(grid, jc.Sphere(R), material, times,
-                         jc.Force(W * jnp.linspace(0.3, 1.0, 6)))
-        return 1e6 * jc.solve(scene, rtol=1e-12, adjoint=adjoint).approach
+        scene = jc.Scene(grid, jc.Sphere(R), material, times, control(values))
+        sol = jc.solve(scene, rtol=1e-12, adjoint=adjoint)
+        return 1e6 * sol.approach if control is jc.Force else sol.normal_force
 
     return curve
 
 
-def test_forward_jacobian_of_a_creep_curve_equals_the_reverse_one():
+@pytest.mark.parametrize("loading", sorted(LOADINGS))
+def test_forward_jacobian_of_a_creep_curve_equals_the_reverse_one(loading):
+    """Frictionless steps: the tangent by projected CG (`_normal_tangent`), the
+    adjoint by its own CG on the transposed system."""
     x = jnp.array([G / 4, 0.01, NU])
-    forward = np.asarray(jax.jacfwd(_creep_curve(FORWARD))(x))
-    reverse = np.asarray(jax.jacrev(_creep_curve(REVERSE))(x))
+    forward = np.asarray(jax.jacfwd(_creep_curve(FORWARD, loading))(x))
+    reverse = np.asarray(jax.jacrev(_creep_curve(REVERSE, loading))(x))
     assert forward.shape == (6, 3)
     assert np.all(np.isfinite(forward))
     scale = np.abs(reverse).max(axis=0)  # per parameter (columns differ in units)

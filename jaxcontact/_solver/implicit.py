@@ -303,6 +303,52 @@ def _normal_adjoint(operator, config, frozen, theta, x_bar, guess, rtol, maxiter
     return (lam_p, q_bar, lam_dz, dt_bar), ok
 
 
+def _normal_tangent(operator, config, frozen, theta, b, linear, rtol, maxiter):
+    """The tangent of a frictionless step (`nd = 0`): `(dF/dx) x_dot = b` by the
+    projected CG of `_set_adjoint`, the forward system brought to its form.
+
+    With `S` the contact set, `A = C K_zz / k_z` and `O` the other cells, `dF/dx x_dot
+    = b` reads `p_dot_O = b_O` (identity rows); on `S` `(A p_dot)_S - dz_dot = b_S`;
+    load control: `a sum(p_dot) = b_dz`; displacement control: `dz_dot = b_dz`. So
+    `p_dot_S` solves `_set_adjoint`'s system with `b_bar = b_S - (A b_O)_S` (plus
+    `dz_dot` under displacement control) and, under load control, `z_bar = sum(b_O) -
+    b_dz / a`, `dz_dot = -a lam_m`. Under load control without contact the approach
+    row is `dz - touching(p)`: `dz_dot = b_dz - (dF_dz/dp) p_dot` (one product with
+    `linear`). Shear rows are identities. **Returns:** `(x_dot, converged)`."""
+    contact, kz = frozen[0], frozen[4]
+    compliance, poisson = theta[0], theta[1]
+    b_p, b_q, b_dz, b_dt = b
+    c = contact.astype(b_p.dtype)
+
+    def a_full(v):
+        return (compliance / kz) * operator.apply_normal(v, poisson)
+
+    precondition = None
+    if config.precondition:
+        precondition = inverse_preconditioner(
+            operator, operator.normal_spectrum(poisson), poisson)
+    b_off = (1 - c) * b_p
+    rhs = c * (b_p - a_full(b_off))
+    zero = jnp.zeros_like(b_p)
+    if config.normal_force_control:
+        a = _area_scale(operator, contact)
+        mu, lam_m, ok = _set_adjoint(a_full, contact, True, a, rhs,
+                                     jnp.sum(b_off) - b_dz / a, zero, rtol, maxiter,
+                                     precondition)
+        p_dot = jnp.where(contact, mu, b_p)
+        dz_dot = jax.lax.cond(
+            jnp.any(contact), lambda: -a * lam_m,
+            lambda: b_dz - linear((p_dot, jnp.zeros_like(b_q), jnp.zeros_like(b_dz),
+                                   jnp.zeros_like(b_dt)))[2])
+    else:
+        dz_dot = b_dz
+        mu, _, ok = _set_adjoint(a_full, contact, False, 1.0, rhs + c * dz_dot,
+                                 jnp.zeros_like(b_dz), zero, rtol, maxiter,
+                                 precondition)
+        p_dot = jnp.where(contact, mu, b_p)
+    return (p_dot, b_q, dz_dot, b_dt), ok
+
+
 def _uncoupled_x_adjoint(operator, config, frozen, theta, x_bar, guess, rtol, maxiter,
                          residual_vjp):
     """The adjoint of an uncoupled step with shear in x only (`nd = 1`, no coupling
@@ -505,7 +551,8 @@ def _make_tangent(config: _Spec, adjoint: ImplicitAdjoint, rtol: float, throw: b
     """A function `x, slip = attach(x, slip, frozen, theta, operator)` that returns
     `x`, `slip` unchanged and whose JVP is the implicit one: the tangent `x_dot`
     solves `(dF/dx) x_dot = -(dF/dtheta) theta_dot` on the frozen sets (GMRES,
-    right-preconditioned as the adjoint), `slip_dot` follows from `x_dot`. Only the
+    right-preconditioned as the adjoint; frictionless steps by projected CG,
+    `_normal_tangent`), `slip_dot` follows from `x_dot`. Only the
     tangents of `theta` enter (`frozen` and the operator are held)."""
 
     @jax.custom_jvp
@@ -541,9 +588,23 @@ def _make_tangent(config: _Spec, adjoint: ImplicitAdjoint, rtol: float, throw: b
                 adjoint.max_steps, _gmres_method(adjoint))
             return _reported(v, ok, throw)
 
-        # A transposable solve (the transposed system by the same GMRES): reverse
+        def normal_cg(matvec, b):  # frictionless: projected CG, as the adjoint
+            v, ok = _normal_tangent(operator, config, frozen, theta, unravel(b), linear,
+                                    rtol, adjoint.max_steps)
+            return _reported(ravel_pytree(v)[0], ok, throw)
+
+        def normal_cg_transposed(vecmat, b):
+            zero = jax.tree.map(jnp.zeros_like, x)
+            v, ok = _normal_adjoint(operator, config, frozen, theta, unravel(b), zero,
+                                    rtol, adjoint.max_steps)
+            return _reported(ravel_pytree(v)[0], ok, throw)
+
+        # A transposable solve (the transposed system by the same method): reverse
         # mode through the forward rule works too (without the adjoint's warm starts).
-        x_dot = unravel(jax.lax.custom_linear_solve(flat(linear), b_flat, gmres, gmres))
+        solve, transpose = ((normal_cg, normal_cg_transposed) if config.nd == 0
+                            else (gmres, gmres))
+        x_dot = unravel(jax.lax.custom_linear_solve(flat(linear), b_flat, solve,
+                                                    transpose))
         if config.nd > 0:
             kt = frozen[5]
             _, slip_dot = jax.jvp(
