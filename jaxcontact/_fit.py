@@ -350,9 +350,10 @@ def fit_prony_batch(data, scene_template: Scene, n_terms: int = 2, *, weights=No
     - `vectorize`: `True`: one vmapped LM solve of all curves; `False`: `fit_prony(...,
       optimiser="lm")` curve by curve (one compilation for all: one shape); `None`
       (default): `True` unless JAX's default backend is the CPU. Measured on 2 CPU
-      cores (64^2 x 40, 16 curves, float64): the loop 412 s, the vmapped solve not
-      finished after 37 min: under `vmap` every LM step and inner contact solve runs
-      to the slowest curve's count, and a CPU has no idle lanes for the batch
+      cores (64^2 x 40, 16 curves, float64): the loop 412 s (230 s with today's
+      tangents), the vmapped solve not finished after 37 min: under `vmap` every LM
+      step and inner contact solve runs to the slowest curve's count, and a CPU has
+      no idle lanes for the batch
       (`benchmarks/notes/fit_real_files.md`). Given `devices`, `None` means `True`.
     - `devices`: the devices to shard the vmapped batch over (as `jc.sweep`: the
       curves padded to a multiple of their number by repeating the last one, each
