@@ -13,6 +13,7 @@ from ._fit import (
     IndentationData as IndentationData,
     PronyFit as PronyFit,
 )
+from ._force_map import fit_force_map as fit_force_map
 from ._grid import Grid as Grid
 from ._dataset import load as load
 from ._indenter import (
@@ -71,7 +72,7 @@ __all__ = [
     "AbstractStepSolver", "PolonskyKeer", "Rounds", "JointPCG", "Fallback",
     "LoadByDisplacement", "ImplicitAdjoint", "StepProblem", "StepGuess", "StepResult",
     # Analytic references, fitting, AFM files
-    "Hertz", "LeeRadok", "fit_prony", "fit_prony_batch", "IndentationData", "PronyFit", "read_afm",
+    "Hertz", "LeeRadok", "fit_prony", "fit_prony_batch", "fit_force_map", "IndentationData", "PronyFit", "read_afm",
     "AFMCurve",
     # Presets and warnings
     "presets", "EdgeContactWarning", "TimeStepWarning",

@@ -493,3 +493,40 @@ def test_creep_file_hold_within_the_noise_at_64(tmp_path, capsys, monkeypatch):
     assert code == 0 and js["converged"], js.get("message")
     assert js["hold_residual_over_noise_raw"] <= 1.5, js["hold_residual_over_noise_raw"]
     assert js["discretisation_rms"] < js["noise_raw"]
+
+
+def test_fit_force_map_recovers_each_cells_scale():
+    """A 2 x 2 force map of the closed-form relaxation curve with its force scaled by
+    (1, 2 / 0.5, 1.5) cell by cell (noiseless, grid indices and stage positions in the
+    metadata as afmformats gives them for a JPK map): `jc.fit_force_map` returns the
+    map on (y, x), every cell converged, the moduli in the ratio of the scales and the
+    relaxation time the same in every cell (to 1e-3: the fit's tolerance; the force
+    is linear in the moduli), the positions as recorded."""
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    base = synthetic_viscoelastic()
+    scales = {(0, 0): 1.0, (1, 0): 2.0, (0, 1): 0.5, (1, 1): 1.5}  # (x, y) -> factor
+    curves = []
+    for (x, y), s in scales.items():
+        cols = dict(base._c, force=s * base["force"])
+        curves.append(FakeCurve(cols, dict(base.metadata, **{
+            "grid index x": x, "grid index y": y,
+            "position x": 1e-5 * x, "position y": -2e-5 * y})))
+    ds = jc.fit_force_map(curves, 5e-6, 1, n=8, samples={"approach": 10, "hold": 15},
+                          contact="viscoelastic", init="lee-radok")
+    assert ds.g_inf.dims == ("y", "x") and ds.g.dims == ("y", "x", "arm")
+    assert list(ds.x.values) == [0, 1] and list(ds.y.values) == [0, 1]
+    assert bool(ds.converged.all()), ds.converged.values
+    assert ds.attrs["mode"] == "relaxation" and ds.attrs["radius_m"] == 5e-6
+    for (x, y), s in scales.items():
+        cell = ds.sel(x=x, y=y)
+        np.testing.assert_allclose(float(cell.g_inf) / float(ds.g_inf[0, 0]), s,
+                                   rtol=1e-3)
+        np.testing.assert_allclose(float(cell.g[0]) / float(ds.g[0, 0, 0]), s, rtol=1e-3)
+        np.testing.assert_allclose(float(cell.tau[0]), float(ds.tau[0, 0, 0]), rtol=1e-3)
+        assert float(cell.position_x) == 1e-5 * x and float(cell.position_y) == -2e-5 * y
+    with pytest.raises(ValueError, match="share a grid position"):
+        jc.fit_force_map(curves[:1] * 2, 5e-6, 1, n=8)
+    with pytest.raises(ValueError, match="holds no curve"):
+        jc.fit_force_map([], 5e-6, 1)
