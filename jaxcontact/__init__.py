@@ -72,7 +72,8 @@ __all__ = [
     "AbstractStepSolver", "PolonskyKeer", "Rounds", "JointPCG", "Fallback",
     "LoadByDisplacement", "ImplicitAdjoint", "StepProblem", "StepGuess", "StepResult",
     # Analytic references, fitting, AFM files
-    "Hertz", "LeeRadok", "fit_prony", "fit_prony_batch", "fit_force_map", "IndentationData", "PronyFit", "read_afm",
+    "Hertz", "LeeRadok", "fit_prony", "fit_prony_batch", "IndentationData", "PronyFit", "read_afm",
+    "fit_force_map",
     "AFMCurve",
     # Presets and warnings
     "presets", "EdgeContactWarning", "TimeStepWarning",

@@ -79,7 +79,7 @@ def fit_force_map(source, radius, n_terms: int = 2, *, samples=None, n: int = 24
     if len(set(zip(ix, iy, strict=True))) != len(raw):
         raise ValueError("fit_force_map: two curves share a grid position")
 
-    # -- One batched fit ----------------------------------------------------------------
+    # -- One batched fit ---------------------------------------------------------------
     samples = {k: 16 for k in SEGMENT_NAMES} if samples is None else samples
     data, weights = [], []
     for c in curves:
@@ -91,7 +91,7 @@ def fit_force_map(source, radius, n_terms: int = 2, *, samples=None, n: int = 24
     template = curves[deepest].scene_template(radius, n=n, poisson=poisson)
     fits = fit_prony_batch(data, template, n_terms, weights=weights, **options)
 
-    # -- The map ------------------------------------------------------------------------
+    # -- The map -----------------------------------------------------------------------
     xs, ys = sorted(set(ix)), sorted(set(iy))
     shape = (len(ys), len(xs))
 

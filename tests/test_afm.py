@@ -523,9 +523,12 @@ def test_fit_force_map_recovers_each_cells_scale():
         cell = ds.sel(x=x, y=y)
         np.testing.assert_allclose(float(cell.g_inf) / float(ds.g_inf[0, 0]), s,
                                    rtol=1e-3)
-        np.testing.assert_allclose(float(cell.g[0]) / float(ds.g[0, 0, 0]), s, rtol=1e-3)
-        np.testing.assert_allclose(float(cell.tau[0]), float(ds.tau[0, 0, 0]), rtol=1e-3)
-        assert float(cell.position_x) == 1e-5 * x and float(cell.position_y) == -2e-5 * y
+        np.testing.assert_allclose(float(cell.g[0]) / float(ds.g[0, 0, 0]), s,
+                                   rtol=1e-3)
+        np.testing.assert_allclose(float(cell.tau[0]), float(ds.tau[0, 0, 0]),
+                                   rtol=1e-3)
+        assert float(cell.position_x) == 1e-5 * x
+        assert float(cell.position_y) == -2e-5 * y
     with pytest.raises(ValueError, match="share a grid position"):
         jc.fit_force_map(curves[:1] * 2, 5e-6, 1, n=8)
     with pytest.raises(ValueError, match="holds no curve"):
