@@ -709,17 +709,17 @@ def test_a_dead_arm_left_in_place_is_not_converged(monkeypatch):
 # ---- batches ------------------------------------------------------------------------
 
 
-def _batch_matches_singles(fits, singles, same_steps=True):
-    """Every curve of a batch ends where its own fit ends: parameters to 1e-8 in their
-    logs, the same certificate and standard deviations to 1e-6 (relative), and (with
-    `same_steps`: a closed-form model, where the vmapped LM is the same arithmetic) the
-    same number of LM steps."""
+def _batch_matches_singles(fits, singles, same_steps=True, atol=1e-8):
+    """Every curve of a batch ends where its own fit ends: parameters to `atol` in
+    their logs, the same certificate and standard deviations to 1e-6 (relative), and
+    (with `same_steps`: a closed-form model, where the vmapped LM is the same
+    arithmetic) the same number of LM steps."""
     for a, b in zip(fits, singles, strict=True):
         assert a.converged == b.converged and a.converged, (a.message, b.message)
         if same_steps:
             assert a.lm_steps == b.lm_steps
         np.testing.assert_allclose(np.log(params(a.material)),
-                                   np.log(params(b.material)), rtol=0, atol=1e-8)
+                                   np.log(params(b.material)), rtol=0, atol=atol)
         for key in ("g_inf", "g", "tau"):
             np.testing.assert_allclose(a.std[key], b.std[key], rtol=1e-6)
 
@@ -824,11 +824,13 @@ def test_batch_rejects_curves_of_different_shapes():
 def test_batch_equals_fits_one_by_one_through_the_contact_model():
     """Three ramp-hold curves through the full contact model (16^2 grid, 8 steps,
     0.5 % noise, 1 arm each, different materials): batch and single fits agree (see
-    `_batch_matches_singles`; measured: logs of the parameters within 1e-9, 1e-7 of
-    their std). The step counts may differ (measured 33 / 14, 18 / 19, 20 / 20): under
-    `vmap` every contact solve iterates until its slowest member, so a member's
-    residual changes within the solver's tolerance, and LM's stopping test, which sits
-    at that level near the optimum, fires at another step."""
+    `_batch_matches_singles` with 1e-7 in the logs: LM's own tolerance is 1e-8 on
+    the step; measured 2.3e-8 since the frictionless tangents are CG, 1e-9 with
+    GMRES). The step counts may differ (measured 33 / 14, 18 / 19, 20 / 20): under
+    `vmap` every contact and tangent solve iterates until its slowest member, so a
+    member's residual and Jacobian change within the solvers' tolerances, and LM's
+    stopping test, which sits at that level near the optimum, fires at another
+    step."""
     reason = gradients_available()
     if reason:
         pytest.skip(reason)
@@ -847,4 +849,4 @@ def test_batch_equals_fits_one_by_one_through_the_contact_model():
                         normal=jc.Displacement(delta))
     fits = jc.fit_prony_batch(data, template, 1, vectorize=True)
     singles = [jc.fit_prony(d, template, 1, optimiser="lm") for d in data]
-    _batch_matches_singles(fits, singles, same_steps=False)
+    _batch_matches_singles(fits, singles, same_steps=False, atol=1e-7)
