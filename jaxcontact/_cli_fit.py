@@ -4,7 +4,7 @@
                    [--poisson NU] [--baseline constant|linear] [--samples A,H,R]
                    [--segments approach,hold,retract] [--steps K]
                    [--contact viscoelastic|piecewise] [--start lee-radok|data]
-                   [--tau-range LO,HI] [--no-check-grid]
+                   [--tau-range LO,HI|auto|none] [--no-check-grid]
 
 Each file is read by `jc.read_afm` (afmformats: `pip install "jaxcontact[afm]"`), its
 segments binned (`--samples`: points in the approach, hold and retract after contact),
@@ -81,9 +81,10 @@ def add_parser(sub):
     p.add_argument("--check-grid", action=argparse.BooleanOptionalAction, default=True,
                    help="also solve the fitted model on a grid twice as fine and report "
                         "the difference (the model's discretisation error; default on)")
-    p.add_argument("--tau-range", default=None, metavar="LO,HI",
-                   help="bounds on the relaxation times [s] (default: none); e.g. the "
-                        "sampling step and the curve's duration")
+    p.add_argument("--tau-range", default="auto", metavar="LO,HI|auto|none",
+                   help="bounds on the relaxation times [s]; 'auto' (default): 1e-3 x "
+                        "the binned data's shortest time step to its duration (a time "
+                        "longer than the data is degenerate with g_inf); 'none'")
     p.add_argument("--steps", type=int, default=200,
                    help="bound on the Levenberg-Marquardt steps (default 200)")
     p.add_argument("--samples", default="8,24,8", metavar="A,H,R",
@@ -103,7 +104,9 @@ def _check(args):
             raise _BadInput(f"--arms must be an integer or 'auto', got {args.arms!r}")
         if not 1 <= arms <= 8:
             raise _BadInput(f"--arms must be in 1..8, got {arms}")
-    if args.tau_range is not None:
+    if args.tau_range in ("auto", "none"):
+        args.tau_bounds = None if args.tau_range == "none" else "auto"
+    elif args.tau_range is not None:
         try:
             lo, hi = (float(v) for v in args.tau_range.split(","))
         except ValueError:
@@ -183,6 +186,10 @@ def _fit_one(path, args, samples, segments):
                                            return_counts=True)
     data = jc.IndentationData(t, force=f, depth=d)
     template = curve.scene_template(args.radius, n=args.n, poisson=args.poisson)
+    tau_bounds = args.tau_bounds
+    if tau_bounds == "auto":
+        steps = np.diff(t)
+        tau_bounds = (1e-3 * float(np.min(steps[steps > 0])), float(t[-1] - t[0]))
     arm_counts = range(1, 5) if args.arms == "auto" else [int(args.arms)]
     fits = {}
     for k in arm_counts:
@@ -198,7 +205,7 @@ def _fit_one(path, args, samples, segments):
                 init = None
         fit = jc.fit_prony(data, template, k, lm_steps=args.steps,
                            weights=np.sqrt(counts), init=init,
-                           bounds={"tau": args.tau_bounds} if args.tau_bounds else None)
+                           bounds={"tau": tau_bounds} if tau_bounds else None)
         aic, bic = _information(fit, 1 + 2 * k)
         fits[k] = (fit, aic, bic)
     if not fits:
@@ -242,7 +249,7 @@ def _fit_one(path, args, samples, segments):
         "radius_m": args.radius,
         "radius_note": RADIUS_NOTE,
         "poisson": args.poisson,
-        "tau_bounds_s": list(args.tau_bounds) if args.tau_bounds else None,
+        "tau_bounds_s": list(tau_bounds) if tau_bounds else None,
         "grid": [args.n, args.n],
         "arms": best,
         "parameters": {

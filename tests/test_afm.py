@@ -302,6 +302,10 @@ def test_fit_command_on_the_relaxation_file_and_the_radius_scaling(tmp_path, cap
         # the model against the raw hold samples, in units of their white noise
         assert js["hold_residual_over_noise_raw"] > 1
         assert js["contact"] == "viscoelastic"
+        # --tau-range auto: 1e-3 x the shortest binned step to the data's duration
+        lo, hi = js["tau_bounds_s"]
+        assert 0 < lo < 1e-2 and 15 < hi < 32  # s: bin means of a 1 s approach, 30 s hold
+        assert all(lo <= e["value"] <= hi for e in js["parameters"]["tau_s"])
         corr = np.array(js["log_parameter_correlation"], float)
         assert corr.shape == (3, 3) and np.allclose(np.diag(corr), 1)
         if js["plot"]:
