@@ -283,12 +283,11 @@ def _area_scale(operator, contact):
     return 1.0 / jnp.sqrt(jnp.maximum(n_contact, 1.0))
 
 
-def _normal_adjoint(operator, config, frozen, theta, x_bar, guess, rtol, maxiter):
-    """The adjoint of a frictionless step (`nd = 0`): `_set_adjoint` on the contact
-    set with `A = C K_zz / k_z`; the shear rows are identities (`lambda_q = q_bar`)."""
-    contact, kz = frozen[0], frozen[4]
+def _normal_block(operator, config, frozen, theta):
+    """`(A, M)` of a frictionless step: `A = C K_zz / k_z` (a function of a field) and
+    its preconditioner (`normal.inverse_preconditioner`, or `None`)."""
+    kz = frozen[4]
     compliance, poisson = theta[0], theta[1]
-    p_bar, q_bar, dz_bar, dt_bar = x_bar
 
     def a_full(v):
         return (compliance / kz) * operator.apply_normal(v, poisson)
@@ -297,6 +296,15 @@ def _normal_adjoint(operator, config, frozen, theta, x_bar, guess, rtol, maxiter
     if config.precondition:
         precondition = inverse_preconditioner(
             operator, operator.normal_spectrum(poisson), poisson)
+    return a_full, precondition
+
+
+def _normal_adjoint(operator, config, frozen, theta, x_bar, guess, rtol, maxiter):
+    """The adjoint of a frictionless step (`nd = 0`): `_set_adjoint` on the contact
+    set with `A = C K_zz / k_z`; the shear rows are identities (`lambda_q = q_bar`)."""
+    contact = frozen[0]
+    p_bar, q_bar, dz_bar, dt_bar = x_bar
+    a_full, precondition = _normal_block(operator, config, frozen, theta)
     lam_p, lam_dz, ok = _set_adjoint(
         a_full, contact, config.normal_force_control, _area_scale(operator, contact),
         p_bar, dz_bar, guess[0], rtol, maxiter, precondition)
@@ -315,18 +323,10 @@ def _normal_tangent(operator, config, frozen, theta, b, linear, rtol, maxiter):
     b_dz / a`, `dz_dot = -a lam_m`. Under load control without contact the approach
     row is `dz - touching(p)`: `dz_dot = b_dz - (dF_dz/dp) p_dot` (one product with
     `linear`). Shear rows are identities. **Returns:** `(x_dot, converged)`."""
-    contact, kz = frozen[0], frozen[4]
-    compliance, poisson = theta[0], theta[1]
+    contact = frozen[0]
     b_p, b_q, b_dz, b_dt = b
     c = contact.astype(b_p.dtype)
-
-    def a_full(v):
-        return (compliance / kz) * operator.apply_normal(v, poisson)
-
-    precondition = None
-    if config.precondition:
-        precondition = inverse_preconditioner(
-            operator, operator.normal_spectrum(poisson), poisson)
+    a_full, precondition = _normal_block(operator, config, frozen, theta)
     b_off = (1 - c) * b_p
     rhs = c * (b_p - a_full(b_off))
     zero = jnp.zeros_like(b_p)
