@@ -85,9 +85,10 @@ class ImplicitAdjoint(eqx.Module):
       tangent direction (`jax.jvp`, `jax.jacfwd`). A Jacobian with more outputs than
       inputs (a fit's curve of `nt` samples against a few parameters) costs `p`
       tangent solves forwards against `nt` adjoint solves backwards. The tangent solve
-      is GMRES on the same frozen-set system, right-preconditioned as the adjoint's,
-      inside `jax.lax.custom_linear_solve`: reverse mode through it works too (the
-      transposed system by the same GMRES, from zero).
+      is on the same frozen-set system, by the adjoint's method (projected CG for
+      frictionless steps, right-preconditioned GMRES otherwise), inside
+      `jax.lax.custom_linear_solve`: reverse mode through it works too (the
+      transposed system by the same method, from zero).
 
     A solve that does not reach `rtol` within `max_steps` is reported, never silent:
     `jc.solve(..., throw=True)` raises `RESULTS.adjoint_not_converged` when the
