@@ -111,3 +111,19 @@ def check_converged(sol, finite=()):
     )
     for name in finite:
         assert np.all(np.isfinite(getattr(sol, name))), name
+
+
+def run_on_host_devices(code: str, devices: int, timeout: float = 600):
+    """Run Python `code` in a fresh process with `devices` forced CPU devices
+    (`--xla_force_host_platform_device_count`) and this checkout first on its path;
+    returns the `subprocess.CompletedProcess` (stdout, stderr as text)."""
+    import os
+    import subprocess
+    import sys
+
+    flag = f"--xla_force_host_platform_device_count={devices}"
+    env = dict(os.environ, XLA_FLAGS=flag, JAX_PLATFORMS="cpu")
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    env["PYTHONPATH"] = os.pathsep.join([root, env.get("PYTHONPATH", "")])
+    return subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                          text=True, timeout=timeout)

@@ -22,8 +22,6 @@ nu = 0.38; built here from the paper's creep form (Eq. 28) with `jc.Prony.from_c
 import functools
 import json
 import os
-import subprocess
-import sys
 import textwrap
 import time
 
@@ -31,6 +29,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import run_on_host_devices
 
 import jaxcontact as jc
 from jaxcontact import _fit
@@ -790,12 +789,7 @@ def test_batch_shards_over_two_cpu_devices():
     fresh process (`devices=`: vmapped even on a CPU): each curve's own fit, as the
     single fits in that process give it (parameters to 1e-8 in their logs)."""
     code = _SHARDED_BATCH.format(tests=os.path.dirname(__file__))
-    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=2",
-               JAX_PLATFORMS="cpu")
-    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    env["PYTHONPATH"] = os.pathsep.join([root, env.get("PYTHONPATH", "")])
-    done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
-                          text=True, timeout=600)
+    done = run_on_host_devices(code, 2)
     assert done.returncode == 0, done.stderr[-3000:]
     out = json.loads(done.stdout.strip().splitlines()[-1])
     assert out["devices"] == 2

@@ -9,8 +9,6 @@ only to ~1e-8, the tolerance).
 import functools
 import json
 import os
-import subprocess
-import sys
 import textwrap
 
 import equinox as eqx
@@ -18,7 +16,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from helpers import zener
+from helpers import run_on_host_devices, zener
 
 import jaxcontact as jc
 
@@ -91,12 +89,7 @@ def test_sweep_shards_over_four_cpu_devices(tmp_path):
     process; a nested field (`material__mu_0`) is batched this time."""
     path = str(tmp_path / "out.npz")
     code = _SUBPROCESS.format(tests=os.path.dirname(__file__), path=path)
-    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4",
-               JAX_PLATFORMS="cpu")
-    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    env["PYTHONPATH"] = os.pathsep.join([root, env.get("PYTHONPATH", "")])
-    done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
-                          text=True, timeout=600)
+    done = run_on_host_devices(code, 4)
     assert done.returncode == 0, done.stderr[-3000:]
     assert json.loads(done.stdout.strip().splitlines()[-1])["devices"] == 4
     with np.load(path) as out:
