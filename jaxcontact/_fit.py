@@ -317,7 +317,8 @@ def _stack(trees):
 
 def fit_prony_batch(data, scene_template: Scene, n_terms: int = 2, *, weights=None,
                     lm_steps: int = 100, client=None, chunk_size: int | None = None,
-                    vectorize: bool | None = None, devices=None, **options) -> list:
+                    vectorize: bool | None = None, devices=None, refit: bool = True,
+                    **options) -> list:
     """Fit a Prony series to each of many curves of one shape at once: the
     Levenberg-Marquardt solves of all curves run as ONE compiled, vmapped program,
     sharded over devices (on accelerators; on a CPU one curve after another, see
@@ -362,9 +363,16 @@ def fit_prony_batch(data, scene_template: Scene, n_terms: int = 2, *, weights=No
       `jax.devices()`. Not with `vectorize=False` or `client` (each worker shards over
       its own devices).
 
+    - `refit`: a curve whose LM fit is not certified (`converged=False`) is fitted
+      again alone by `jc.fit_prony`'s default optimiser (`"auto"`: L-BFGS first), and
+      the better fit kept (a certified one, else the lower loss). Measured on a real
+      force map's curve: LM stopped NOT converged after 100 steps where L-BFGS
+      converged in 2.3 s (`benchmarks/notes/fit_real_files.md`, section 10).
+
     **Returns:** a list of `jc.PronyFit`, one per curve, each as `jc.fit_prony(...,
     optimiser="lm")` would return it: the same start (from each curve's data), the
-    same LM iteration, the same sensitivities and certificate.
+    same LM iteration, the same sensitivities and certificate (unless refitted, see
+    `refit`).
 
     Cost: the start and the sensitivities of each curve are computed one curve at a
     time (a few model evaluations each, with the program compiled for one curve),
@@ -403,7 +411,8 @@ def fit_prony_batch(data, scene_template: Scene, n_terms: int = 2, *, weights=No
 
         check_client(client, chunk_size, "jc.fit_prony_batch")
         return fit_on_client(fit_prony_batch, data, scene_template, n_terms, weights,
-                             inits, lm_steps, {**options, "vectorize": vectorize},
+                             inits, lm_steps,
+                             {**options, "vectorize": vectorize, "refit": refit},
                              client, chunk_size)
     if chunk_size is not None:
         raise ValueError(f"fit_prony_batch: chunk_size={chunk_size!r} needs a client")
@@ -418,8 +427,19 @@ def fit_prony_batch(data, scene_template: Scene, n_terms: int = 2, *, weights=No
                          init=inits[i], optimiser="lm", lm_steps=lm_steps, _lm=lm,
                          **options)
 
+    def better(i, fit):
+        """`fit`, or where it is not certified, the better of it and `fit_prony`'s
+        default fit of curve `i` (see `refit`)."""
+        if fit.converged or not refit:
+            return fit
+        alone = fit_prony(data[i], scene_template, n_terms, weights=weights[i],
+                          init=inits[i], lm_steps=lm_steps, **options)
+        if alone.converged or alone.loss < fit.loss:
+            return alone
+        return fit
+
     if not vectorize:
-        return [one(i, None) for i in range(len(data))]
+        return [better(i, one(i, None)) for i in range(len(data))]
 
     # -- Set-up of every curve (the start from its data) -----------------------------
     thetas, args = [], []
@@ -459,7 +479,7 @@ def fit_prony_batch(data, scene_template: Scene, n_terms: int = 2, *, weights=No
     fits = []
     for i in range(len(data)):
         result = (jax.tree.map(lambda x, i=i: x[i], new), ok[i], steps[i])
-        fits.append(one(i, {"result": result}))
+        fits.append(better(i, one(i, {"result": result})))
     return fits
 
 
