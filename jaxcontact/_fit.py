@@ -354,15 +354,14 @@ def fit_prony_batch(data, scene_template: Scene, n_terms: int = 2, *, weights=No
       cores (64^2 x 40, 16 curves, float64): the loop 412 s (230 s with today's
       tangents), the vmapped solve not finished after 37 min: under `vmap` every LM
       step and inner contact solve runs to the slowest curve's count, and a CPU has
-      no idle lanes for the batch
-      (`benchmarks/notes/fit_real_files.md`). Given `devices`, `None` means `True`.
+      no idle lanes for the batch (`benchmarks/notes/fit_real_files.md`). Given
+      `devices`, `None` means `True`.
     - `devices`: the devices to shard the vmapped batch over (as `jc.sweep`: the
       curves padded to a multiple of their number by repeating the last one, each
       device fitting its slice; unlike `jc.sweep` the devices step together, one LM
       loop for the whole batch, the slowest curve setting its length); default
       `jax.devices()`. Not with `vectorize=False` or `client` (each worker shards over
       its own devices).
-
     - `refit`: a curve whose LM fit is not certified (`converged=False`) is fitted
       again alone by `jc.fit_prony`'s default optimiser (`"auto"`: L-BFGS first), and
       the better fit kept (a certified one, else the lower loss). Measured on a real
@@ -457,20 +456,21 @@ def fit_prony_batch(data, scene_template: Scene, n_terms: int = 2, *, weights=No
     # -- One batched LM solve, padded to a multiple of the devices and sharded --------
     stacked_args, axes = _stack(args)
     theta_b = jax.tree.map(lambda *x: jnp.stack(x), *thetas)
-    padded = math.ceil(len(data) / len(devices)) * len(devices)
-    theta_b = jax.tree.map(lambda x: _pad(x, padded), theta_b)
-    stacked_args = jax.tree.map(lambda x, a: _pad(x, padded) if a == 0 else x,
-                                stacked_args, axes, is_leaf=lambda x: x is None)
     # `jax.shard_map` (as in `jc.sweep`) fails inside lineax's linear solves (its
     # structure check compares the manual axes' shardings: lineax issue 185), so the
     # batch axis is sharded for XLA's partitioner: the devices step together.
+    padded = math.ceil(len(data) / len(devices)) * len(devices)
     mesh = Mesh(np.array(devices), (_AXIS,))
     along = NamedSharding(mesh, PartitionSpec(_AXIS))
     same = NamedSharding(mesh, PartitionSpec())
-    theta_b = jax.device_put(theta_b, along)
-    stacked_args = jax.tree.map(
-        lambda x, a: jax.device_put(x, along if a == 0 else same) if eqx.is_array(x)
-        else x, stacked_args, axes, is_leaf=lambda x: x is None)
+
+    def place(x, axis):
+        if axis == 0:
+            return jax.device_put(_pad(x, padded), along)
+        return jax.device_put(x, same) if eqx.is_array(x) else x
+
+    theta_b = jax.tree.map(lambda x: place(x, 0), theta_b)
+    stacked_args = jax.tree.map(place, stacked_args, axes, is_leaf=lambda x: x is None)
     rtol = 1e-8 if jnp.finfo(dtype).bits >= 64 else 1e-4
     new, ok, steps = _lm_solve_batch(theta_b, stacked_args, axes, rtol, 0.1 * rtol,
                                      lm_steps)

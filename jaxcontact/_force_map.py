@@ -6,7 +6,7 @@ import os
 import numpy as np
 
 from ._afm import SEGMENT_NAMES, _afmformats, read_afm
-from ._fit import fit_prony_batch
+from ._fit import IndentationData, fit_prony_batch
 
 
 def _grid_index(metadata, axis: str, fallback: int) -> int:
@@ -83,9 +83,8 @@ def fit_force_map(source, radius, n_terms: int = 2, *, samples=None, n: int = 24
     samples = {k: 16 for k in SEGMENT_NAMES} if samples is None else samples
     data, weights = [], []
     for c in curves:
-        d = c.data(samples)
-        *_, counts = c.resampled(samples, return_counts=True)
-        data.append(d)
+        t, f, d, _, counts = c.resampled(samples, return_counts=True)
+        data.append(IndentationData(t, force=f, depth=d))
         weights.append(np.sqrt(counts))
     deepest = int(np.argmax([float(np.max(c.depth)) for c in curves]))
     template = curves[deepest].scene_template(radius, n=n, poisson=poisson)
