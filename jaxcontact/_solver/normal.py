@@ -103,6 +103,16 @@ def hertzian_guess(h, load, effective_modulus, cell_area, steps: int = 60):
     return jnp.sqrt(jnp.maximum(hi - h, 0))
 
 
+# The preconditioned CG restarts its conjugacy when more than this fraction of the
+# contact re-enters in one iteration (the textbook algorithm: when any cell does);
+# benchmarks/notes/normal_reentry.md.
+REENTRY_RESTART_FRACTION = 0.01
+
+
+def _many_reenter(overlap, n_contact):
+    return jnp.sum(overlap) > REENTRY_RESTART_FRACTION * n_contact
+
+
 class NormalState(NamedTuple):
     """Raw result of a normal solve (all arrays)."""
 
@@ -269,9 +279,12 @@ class PolonskyKeer(AbstractStepSolver):
             if load_control:  # keep the load: a mean-free direction on the contact
                 z = jnp.where(contact, z - _safe_div(jnp.sum(z), n_contact), 0)
         g_norm = jnp.sum(gc * z)  # (g, M g); (g, g) without preconditioner
-        restart = s.restart
-        if k.precondition is not None:
-            restart = restart | jnp.any(overlap)
+        if k.precondition is None:
+            reentered = jnp.any(overlap)
+            restart = s.restart
+        else:
+            reentered = _many_reenter(overlap, n_contact)
+            restart = s.restart | reentered
         beta = jnp.where(restart, 0.0, _safe_div(g_norm, s.g_norm_old))
         t = jnp.where(contact, z + beta * s.t, 0)
         r_raw = apply_fn(t)
@@ -312,7 +325,7 @@ class PolonskyKeer(AbstractStepSolver):
         return _NormalCGState(
             p=p_new, u=u_new, g=g_new, t=t, g_norm_old=g_norm,
             # A failed certification changes the residual discontinuously: restart.
-            restart=jnp.any(overlap) | (certify & (res > rtol)),
+            restart=reentered | (certify & (res > rtol)),
             it=it, residual=res, applications=applications, p_start=s.p_start)
 
     def normal_state(self, k: NormalOperator, s: _NormalCGState) -> NormalState:
