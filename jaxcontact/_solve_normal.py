@@ -76,10 +76,62 @@ class NormalSolution(eqx.Module):
                               units=units, attrs=attrs)
 
 
-@eqx.filter_jit
-def _solve(operator, h, compliance, poisson, target, load_control, solver, p0=None):
-    """The jitted solve; `p0`: the starting pressure, default the Hertzian guess under
-    load control and zero (the local interference) under displacement control."""
+# A nested start: the coarsest level has at least this many cells a side, and the
+# coarse levels are solved to this tolerance (benchmarks/notes/normal_reentry.md).
+NESTED_COARSEST = 128
+NESTED_RTOL = 1e-4
+_STARTS = ("auto", "hertz", "nested")
+
+
+def nested_levels(shape) -> int:
+    """How many times a nested start halves the grid `shape`: while both sides are
+    even and the halved grid keeps `NESTED_COARSEST` cells a side."""
+    nx, ny = shape
+    levels = 0
+    while nx % 2 == 0 and ny % 2 == 0 and min(nx, ny) // 2 >= NESTED_COARSEST:
+        nx, ny = nx // 2, ny // 2
+        levels += 1
+    return levels
+
+
+def _block_mean(a):
+    """The mean over 2 x 2 blocks of cells: `(nx, ny) -> (nx / 2, ny / 2)`."""
+    nx, ny = a.shape
+    return a.reshape(nx // 2, 2, ny // 2, 2).mean(axis=(1, 3))
+
+
+def _repeat(p):
+    """Each cell's value on its 2 x 2 finer cells (the same pressure, the same load)."""
+    return jnp.repeat(jnp.repeat(p, 2, axis=0), 2, axis=1)
+
+
+def _nested_start(operator, h, compliance, poisson, target, load_control, solver,
+                  levels: int):
+    """A start for the solve on `operator.grid` (`levels >= 1`): the same problem on
+    the grid halved `levels` times (the gap averaged over 2 x 2 blocks, the same
+    domain), solved to `NESTED_RTOL` from the default start, its pressure repeated
+    2 x 2 as the start of the next finer level, up to this grid's."""
+    grid = operator.grid
+    gaps = [h]
+    for _ in range(levels):
+        gaps.append(_block_mean(gaps[-1]))
+    coarse = PolonskyKeer(
+        rtol=max(NESTED_RTOL, solver.tolerance(h.dtype)), max_steps=solver.max_steps,
+        resync_every=solver.resync_every, precondition=solver.precondition)
+    p = None
+    for gap in gaps[:0:-1]:  # coarsest first
+        level = HalfSpace(Grid(gap.shape, grid.size, periodic=grid.periodic), "normal")
+        state = _solve_state(level, gap, compliance, poisson, target, load_control,
+                             coarse, p)
+        p = _repeat(state.pressure)
+    return p
+
+
+def _solve_state(operator, h, compliance, poisson, target, load_control, solver,
+                 p0=None, levels: int = 0):
+    """The solve's `NormalState`; `p0`: the starting pressure, default a nested start
+    over `levels` coarser grids if `levels`, else the Hertzian guess under load
+    control and zero (the local interference) under displacement control."""
     grid = operator.grid
     nx, ny = grid.shape
     dtype = h.dtype
@@ -87,12 +139,24 @@ def _solve(operator, h, compliance, poisson, target, load_control, solver, p0=No
         operator, compliance, poisson, jnp.zeros((), dtype), h,
         jnp.zeros((3, nx, ny), dtype), target, jnp.zeros((0,), dtype),
         jnp.zeros((0, nx, ny), dtype), 0, False, load_control, ())
+    if p0 is None and levels:
+        p0 = _nested_start(operator, h, compliance, poisson, target, load_control,
+                           solver, levels)
     if p0 is None:
         p0 = jnp.zeros_like(h)  # displacement control: the local interference
         if load_control:
             effective_modulus = 2 / (compliance * (1 - poisson))
             p0 = hertzian_guess(h, target, effective_modulus, grid.cell_area)
-    state = solver.solve_state(problem, StepGuess(p0, jnp.zeros((0, nx, ny), dtype)))
+    return solver.solve_state(problem, StepGuess(p0, jnp.zeros((0, nx, ny), dtype)))
+
+
+@eqx.filter_jit
+def _solve(operator, h, compliance, poisson, target, load_control, solver, p0=None,
+           levels: int = 0):
+    """The jitted solve (`_solve_state`) as a `NormalSolution`."""
+    grid = operator.grid
+    state = _solve_state(operator, h, compliance, poisson, target, load_control, solver,
+                         p0, levels)
     return NormalSolution(
         pressure=state.pressure,
         gap=state.gap,
@@ -116,6 +180,7 @@ def solve_normal(
     approach=None,
     solver: PolonskyKeer = PolonskyKeer(),
     operator: HalfSpace | None = None,
+    start: str = "auto",
     throw: bool = True,
 ) -> NormalSolution:
     """Frictionless indentation of a half-space by a rigid indenter (one elastic step).
@@ -136,6 +201,17 @@ def solve_normal(
     - `solver`: a `jc.PolonskyKeer` (tolerance, iteration bound).
     - `operator`: a prebuilt `jc.HalfSpace(grid)`, to reuse its kernel spectra across
       calls (built here if omitted).
+    - `start`: the CG's starting pressure. `"hertz"`: the Hertzian guess under load
+      control (`p = 0`, the local interference, under displacement control).
+      `"nested"`: the same problem solved first on grids halved down to at least 128
+      cells a side (the gap averaged over 2 x 2 cells, each level to rtol `1e-4`,
+      its pressure repeated 2 x 2 on the next), which needs sides that halve at
+      least once to 128 or more (e.g. 256, 384, 512, 1024). `"auto"` (default):
+      `"nested"` where the grid allows it, else `"hertz"` (on a rough sphere, float64,
+      rtol 1e-6, measured: load control 1.0x at 256^2, 1.3x at 512^2; displacement
+      control 1.5x at 256^2, 1.9x at 512^2; `benchmarks/notes/normal_reentry.md`). The start changes the path, not the solution: the fine solve
+      meets the same tolerance. `iterations` and `applications` count the fine grid's
+      solve only. It compiles one solve per level.
     - `throw`: `True` (default, as in `jc.solve`): raise a `ValueError` when the solve
       does not reach its tolerance within `max_steps` (at once for concrete inputs, at
       run time under `jit`/`vmap`/`grad`); `False`: return the solution with
@@ -163,6 +239,15 @@ def solve_normal(
         raise TypeError(f"solver must be a jc.PolonskyKeer, got {solver!r}")
     if not isinstance(throw, bool):
         raise TypeError(f"throw must be a bool, got {throw!r}")
+    if start not in _STARTS:
+        raise ValueError(f"start must be one of {_STARTS}, got {start!r}")
+    levels = nested_levels(grid.shape)
+    if start == "nested" and levels == 0:
+        raise ValueError(
+            f"start='nested' needs a grid whose sides halve to >= {NESTED_COARSEST} "
+            f"cells (both even, at least {2 * NESTED_COARSEST}); got shape {grid.shape}")
+    if start == "hertz":
+        levels = 0
     indenter = as_indenter(indenter)
     h = indenter.gap(grid)
     if h.shape != grid.shape:
@@ -208,6 +293,8 @@ def solve_normal(
         target.astype(dtype),
         load_control,
         solver,
+        None,
+        levels,
     )
     return _raise_on_failure(sol, solver) if throw else sol
 
