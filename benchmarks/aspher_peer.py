@@ -105,12 +105,14 @@ def roughness(n: int, seed: int = SEED) -> np.ndarray:
     return h * (RMS / rms)
 
 
-def gap_field(n: int) -> np.ndarray:
-    """Initial gap [m]: sphere r^2 / (2R) + roughness, at the cell centres."""
+def gap_field(n: int, rough: bool = True) -> np.ndarray:
+    """Initial gap [m]: sphere r^2 / (2R) + roughness (none if not `rough`: the
+    Hertz problem), at the cell centres."""
     dx = SIZE / n
     c = (np.arange(n) - (n - 1) / 2) * dx
     x, y = np.meshgrid(c, c, indexing="ij")
-    return (x * x + y * y) / (2 * RADIUS) + roughness(n)
+    sphere = (x * x + y * y) / (2 * RADIUS)
+    return sphere + roughness(n) if rough else sphere
 
 
 def rel_l2(p, ref) -> float:
@@ -155,11 +157,14 @@ class Peer:
 class JC:
     """jaxcontact on this problem, one dtype."""
 
-    def __init__(self, n: int, dtype, h: np.ndarray):
+    def __init__(self, n: int, dtype, h: np.ndarray, smooth: bool = False):
+        """`smooth`: the indenter is `jc.Sphere(RADIUS)` (its gap is `h`), as a user
+        would pose Hertz; else `jc.Surface(h)`."""
         self.dtype = dtype
         self.grid = jc.Grid((n, n), jnp.asarray(SIZE, dtype))
         self.material = jc.Elastic(jnp.asarray(SHEAR, dtype), jnp.asarray(NU, dtype))
-        self.surface = jc.Surface(jnp.asarray(h, dtype))
+        self.surface = (jc.Sphere(jnp.asarray(RADIUS, dtype)) if smooth
+                        else jc.Surface(jnp.asarray(h, dtype)))
         self.force = jnp.asarray(FORCE, dtype)
         self.op = jax.block_until_ready(jc.HalfSpace(self.grid))
 
@@ -238,14 +243,23 @@ def iteration_cost(n: int, steps=(10, 40), repeats: int = 5) -> dict:
     }
 
 
-def run_n(n: int, tols, repeats: int, peer: Peer | None, tmp: Path, log) -> dict:
-    h = gap_field(n)
+def run_n(n: int, tols, repeats: int, peer: Peer | None, tmp: Path, log,
+          tamaas: bool = False, rough: bool = True) -> dict:
+    h = gap_field(n, rough)
     out: dict = {"n": n, "notes": []}
     p_nom = FORCE / (SIZE**2 * E_STAR)
     gap_file = tmp / f"gap_{n}.npy"
     np.save(gap_file, h / SIZE)
+    gap_si = tmp / f"gap_si_{n}.npy"
+    np.save(gap_si, h)
 
-    jcs = {"float64": JC(n, jnp.float64, h), "float32": JC(n, jnp.float32, h)}
+    def ask_tamaas(tol, save=None):
+        return peer.ask({"code": "tamaas_gap", "n": n, "size": SIZE,
+                         "gap_file": str(gap_si), "e_star": E_STAR, "poisson": NU,
+                         "force": FORCE, "tol": tol, "save": save})
+
+    jcs = {"float64": JC(n, jnp.float64, h, smooth=not rough),
+           "float32": JC(n, jnp.float32, h, smooth=not rough)}
     # References: each code's own float64 solve at TIGHT.
     ref_sol, t_ref, w_ref = jcs["float64"].solve(TIGHT)
     p_ref_jc = np.asarray(ref_sol.pressure)
@@ -269,10 +283,22 @@ def run_n(n: int, tols, repeats: int, peer: Peer | None, tmp: Path, log) -> dict
         log(f"n={n} aspher ref: it {a['iterations']} {a['status']} "
             f"conv {a['converged']} vs jc {a['rel_l2_vs_jaxcontact_reference']:.2e}")
 
+    p_ref_tm = None
+    if peer is not None and tamaas:
+        ref_file = tmp / f"tamaas_ref_{n}.npy"
+        a = ask_tamaas(TIGHT, str(ref_file))
+        p_ref_tm = np.load(ref_file)
+        a["rel_l2_vs_jaxcontact_reference"] = rel_l2(p_ref_tm, p_ref_jc)
+        out["tamaas_reference"] = a
+        log(f"n={n} tamaas ref: conv {a['converged']} {a['times_s'][0]:.2f} s vs jc "
+            f"{a['rel_l2_vs_jaxcontact_reference']:.2e} (periodic)")
+
     configs = [("jaxcontact", "float64", None), ("jaxcontact", "float32", None)]
     if peer is not None:
         configs += [("aspher", "double", "plain"), ("aspher", "double", "nested"),
                     ("aspher", "single", "nested")]
+    if peer is not None and tamaas:
+        configs.append(("tamaas", "double", "periodic"))
 
     def once(cfg, tol, save):
         code, prec, mode = cfg
@@ -282,6 +308,11 @@ def run_n(n: int, tols, repeats: int, peer: Peer | None, tmp: Path, log) -> dict
             return dt, {"iterations": int(s.iterations), "converged": bool(s.converged),
                         "warnings": w}, p
         f = tmp / "p.npy"
+        if code == "tamaas":
+            a = ask_tamaas(tol, str(f) if save else None)
+            p = np.load(f) if save else None
+            info = {k: a[k] for k in ("iterations", "converged", "final_error")}
+            return a["times_s"][0], info, p
         a = peer.ask({"code": "aspher", "n": n, "gap_file": str(gap_file),
                       "p_nominal": p_nom, "tol": tol, "mode": mode, "precision": prec,
                       "save": str(f) if save else None})
@@ -296,7 +327,8 @@ def run_n(n: int, tols, repeats: int, peer: Peer | None, tmp: Path, log) -> dict
         res = {cfg: {"times_s": [], "loadavg": []} for cfg in configs}
         for cfg in configs:  # warm-up (jaxcontact: compile), untimed; gives the error
             dt, info, p = once(cfg, tol, True)
-            ref = p_ref_jc if cfg[0] == "jaxcontact" else p_ref_as
+            ref = {"jaxcontact": p_ref_jc, "aspher": p_ref_as,
+                   "tamaas": p_ref_tm}[cfg[0]]
             res[cfg].update(info)
             res[cfg]["error"] = rel_l2(p, ref)
             res[cfg]["first_call_s"] = dt
@@ -376,10 +408,13 @@ def summarise(result: dict, targets=(1e-4, 3e-5, 1e-5)) -> dict:
             peers = {nm: v[k] for nm, v in at.items()
                      if nm.startswith("aspher") and v[k]}
             best_peer = min(peers.values()) if peers else None
+            tamaas = at.get("tamaas double periodic", {}).get(k)
             for ours in ("jaxcontact float64 pcg", "jaxcontact float32 pcg"):
                 mine = at.get(ours, {}).get(k)
                 if mine and best_peer:
                     ratios[f"{k} best aspher / {ours.split()[1]}"] = best_peer / mine
+                if mine and tamaas:
+                    ratios[f"{k} tamaas / {ours.split()[1]}"] = tamaas / mine
         out[str(case["n"])] = {"time_at_error_s": at, "ratios": ratios}
     return out
 
@@ -389,6 +424,11 @@ def main(argv=None) -> int:
     ap.add_argument("--n", type=int, nargs="+", default=[256, 512])
     ap.add_argument("--tol", type=float, nargs="+", default=[1e-4, 1e-6])
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--surface", choices=("rough", "hertz"), default="rough",
+                    help="the rough sphere (default) or the smooth Hertz sphere")
+    ap.add_argument("--tamaas", action="store_true",
+                    help="also Tamaas (periodic PolonskyKeerRey) when the peer's "
+                         "Python has it")
     ap.add_argument("--peer-python", default=os.environ.get(
         "JAXCONTACT_ASPHER_PYTHON", "/work/aspher-venv/bin/python"))
     ap.add_argument("--out", default=str(HERE / "results" / "aspher_peer.json"))
@@ -432,7 +472,7 @@ def main(argv=None) -> int:
                     "size": SIZE, "size_over_a": 5.5, "hurst": HURST,
                     "k_cycles_per_L": [K_LOW, K_HIGH], "rms": RMS,
                     "rms_over_delta": 0.15, "seed": SEED, "periodic": False,
-                    "control": "load", "tight": TIGHT},
+                    "control": "load", "tight": TIGHT, "surface": args.surface},
         "machine": {"cpu_count": os.cpu_count(), "platform": platform.platform(),
                     "jax": jax.__version__, "loadavg_before": os.getloadavg(),
                     "date": datetime.datetime.now(datetime.UTC).isoformat()},
@@ -443,7 +483,10 @@ def main(argv=None) -> int:
         try:
             for n in args.n:
                 result["cases"].append(
-                    run_n(n, args.tol, args.repeats, peer, Path(td), log))
+                    run_n(n, args.tol, args.repeats, peer, Path(td), log,
+                          tamaas=args.tamaas and bool(
+                              (probe or {}).get("tamaas", {}).get("available")),
+                          rough=args.surface == "rough"))
         finally:
             if peer is not None:
                 peer.close()

@@ -11,7 +11,7 @@ from ._scene import (
     _check_finite_in_dtype, expected_contact_radius, expected_surface_contact,
     warn_if_surface_too_large, warn_if_too_large,
 )
-from ._indenter import AbstractIndenter, as_indenter
+from ._indenter import AbstractIndenter, Sphere, as_indenter
 from ._material.base import AbstractMaterial, check_in_dtype
 from ._loading import Displacement, Force
 from ._operator import HalfSpace
@@ -207,9 +207,11 @@ def solve_normal(
       cells a side (the gap averaged over 2 x 2 cells, each level to rtol `1e-4`,
       its pressure repeated 2 x 2 on the next), which needs sides that halve at
       least once to 128 or more (e.g. 256, 384, 512, 1024). `"auto"` (default):
-      `"nested"` where the grid allows it, else `"hertz"` (on a rough sphere, float64,
-      rtol 1e-6, measured: load control 1.0x at 256^2, 1.3x at 512^2; displacement
-      control 1.5x at 256^2, 1.9x at 512^2; `benchmarks/notes/normal_reentry.md`). The start changes the path, not the solution: the fine solve
+      `"hertz"` for a `jc.Sphere` under load control (the guess is nearly its
+      answer: 1-7 iterations) and where the grid does not halve, else `"nested"` (on
+      a rough sphere, float64, rtol 1e-6, measured: load control 1.0x at 256^2, 1.3x
+      at 512^2; displacement control 1.5x at 256^2, 1.9x at 512^2;
+      `benchmarks/notes/normal_reentry.md`). The start changes the path, not the solution: the fine solve
       meets the same tolerance. `iterations` and `applications` count the fine grid's
       solve only. It compiles one solve per level.
     - `throw`: `True` (default, as in `jc.solve`): raise a `ValueError` when the solve
@@ -246,7 +248,8 @@ def solve_normal(
         raise ValueError(
             f"start='nested' needs a grid whose sides halve to >= {NESTED_COARSEST} "
             f"cells (both even, at least {2 * NESTED_COARSEST}); got shape {grid.shape}")
-    if start == "hertz":
+    if start == "hertz" or (start == "auto" and force is not None
+                            and isinstance(indenter, Sphere)):
         levels = 0
     indenter = as_indenter(indenter)
     h = indenter.gap(grid)

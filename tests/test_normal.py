@@ -378,9 +378,14 @@ def test_nested_start_changes_the_path_not_the_solution():
     assert abs(float(by_approach["nested"].normal_force) / force - 1) < 1e-6
     assert (int(by_approach["nested"].applications)
             <= 0.7 * int(by_approach["hertz"].applications))
-    # "auto" is "nested" on this grid: the same program's answer.
+    # "auto" is "nested" on this grid: the same program's answer; for a sphere under
+    # load control it keeps the Hertzian guess (nearly the answer there).
     auto = jc.solve_normal(grid, surface, material, force=force, solver=solver)
     assert int(auto.iterations) == int(by_load["nested"].iterations)
+    sphere = {start: jc.solve_normal(grid, jc.Sphere(10e-3), material, force=force,
+                                     solver=solver, start=start)
+              for start in ("auto", "hertz")}
+    assert int(sphere["auto"].iterations) == int(sphere["hertz"].iterations)
 
 
 def test_nested_start_bad_input():
