@@ -369,7 +369,7 @@ def run_n(n: int, tols, repeats: int, peer: Peer | None, tmp: Path, log,
                          "time_per_iteration_s": r["best_s"] / r["iterations"],
                          "iteration_over_conv_naive":
                              r["best_s"] / r["iterations"] / floor}
-                        for r in r64],
+                        for r in r64 if r["iterations"] > 0],  # 0: the guess met tol
             "note": "time per iteration = best solve time / iterations (includes the "
                     "solve's set-up: initial guess, final displacement); conv = one "
                     "rfft2/irfft2 pair of the 2n x 2n padded field times the spectrum, "
