@@ -26,6 +26,7 @@ kernels (xz, yz) purely imaginary ones, so only real arrays are stored. Blocks t
 from typing import Literal
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
@@ -36,6 +37,8 @@ from ._grid import Grid
 
 Coupling = Literal["normal", "none", "x", "full"]
 _COUPLINGS = ("normal", "none", "x", "full")
+# `HalfSpace.convolve` splits its transforms in two on a CPU from this many cells a side.
+SPLIT_MIN = 256
 
 
 def _concrete(grid: Grid) -> bool:
@@ -249,6 +252,30 @@ class HalfSpace(eqx.Module):
             return jnp.fft.irfft2(spec, s=(nx, ny))
         field = jnp.fft.ifft(spec, axis=-2)[..., :nx, :]
         return jnp.fft.irfft(field, n=self.fft_shape[1], axis=-1)[..., :ny]
+
+    def convolve(self, field: Float[Array, "nx ny"], spectrum) -> Float[Array, "nx ny"]:
+        """`inverse(forward(field) * spectrum)` for one field, with `spectrum` in
+        `forward`'s layout. On a CPU, on a non-periodic grid of at least `SPLIT_MIN`
+        cells a side, each transform runs as two independent halves (rows, then
+        spectral columns), which XLA's CPU runtime runs on two threads at once: its
+        FFT does not use a second core by itself (the normal solve 8-13 % faster at
+        256^2-1024^2 on 2 cores, `benchmarks/notes/normal_reentry.md`). The same
+        numbers to round-off either way."""
+        nx, ny = self.grid.shape
+        if (self.grid.periodic or min(nx, ny) < SPLIT_MIN or field.ndim != 2
+                or jax.default_backend() != "cpu"):
+            return self.inverse(self.forward(field) * spectrum)
+        lx, ly = self.fft_shape
+        rows, cols = nx // 2, (ly // 2 + 1) // 2
+        spec = jnp.concatenate([jnp.fft.rfft(field[:rows], n=ly, axis=-1),
+                                jnp.fft.rfft(field[rows:], n=ly, axis=-1)], axis=0)
+        halves = [jnp.fft.ifft(jnp.fft.fft(spec[:, c], n=lx, axis=0) * spectrum[:, c],
+                               axis=0)[:nx]
+                  for c in (slice(None, cols), slice(cols, None))]
+        spec = jnp.concatenate(halves, axis=1)
+        return jnp.concatenate([jnp.fft.irfft(spec[:rows], n=ly, axis=-1)[:, :ny],
+                                jnp.fft.irfft(spec[rows:], n=ly, axis=-1)[:, :ny]],
+                               axis=0)
 
     def diagonal(self, spectrum) -> Float[Array, ""]:
         """Diagonal entry of the convolution with a real, even `spectrum` (its kernel at

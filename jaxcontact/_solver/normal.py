@@ -161,7 +161,7 @@ class NormalOperator:
             precondition = inverse_preconditioner(
                 operator, operator.normal_spectrum(problem.poisson), problem.poisson)
         return cls(
-            lambda p: operator.inverse(operator.forward(p) * spectrum),
+            lambda p: operator.convolve(p, spectrum),
             problem.gap + problem.history[2], problem.normal_target,
             operator.grid.cell_area, load_control=problem.normal_force_control,
             rtol=solver.tolerance(problem.dtype),
