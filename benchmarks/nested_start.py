@@ -6,7 +6,8 @@ rtol 1e-6: `default` is `jc.solve_normal`'s path (the Hertzian guess on the fine
 over 2 x 2 blocks), each from the previous level's pressure repeated 2 x 2, the coarse
 levels to <rtol>, the fine one to 1e-6. Prints iterations per level, best of 2 wall
 times after a compile, and the pressure's relative L2 error against a rtol 1e-10 solve
-from the default start. A measurement only: no library code uses a nested start.
+from the default start. `jc.solve_normal(start="nested")` is the variant with
+coarsest 128 and coarse rtol 1e-4 (session 26); this script compares the settings.
 
 Usage: python benchmarks/nested_start.py 512,1024 128
 """
@@ -25,12 +26,8 @@ import jax.numpy as jnp  # noqa: E402
 import jaxcontact as jc  # noqa: E402
 import aspher_peer as ap  # noqa: E402
 from jaxcontact._solve_normal import _solve  # noqa: E402
+from jaxcontact._solve_normal import _block_mean, _repeat  # noqa: E402
 from jaxcontact._solver.normal import hertzian_guess  # noqa: E402
-
-
-def coarsen(h):  # 2x2 block mean
-    n = h.shape[0]
-    return h.reshape(n // 2, 2, n // 2, 2).mean(axis=(1, 3))
 
 
 def solve_from(operator, h, compliance, poisson, target, solver, p0):
@@ -58,7 +55,7 @@ for n in [int(a) for a in sys.argv[1].split(",")]:
         ops[m] = jc.HalfSpace(jc.Grid((m, m), ap.SIZE))
         hs[m] = hh
         m //= 2
-        hh = coarsen(hh)
+        hh = _block_mean(hh)
     solver = jc.PolonskyKeer(rtol=1e-6)
     tight = jc.PolonskyKeer(rtol=1e-10)
     ref, _, _ = solve_from(
@@ -77,7 +74,7 @@ for n in [int(a) for a in sys.argv[1].split(",")]:
         for m in ms:
             s = solver if m == n else jc.PolonskyKeer(rtol=coarse_rtol)
             if m != ms[0]:
-                p = jnp.repeat(jnp.repeat(p, 2, 0), 2, 1)
+                p = _repeat(p)
             p, it, c = solve_from(ops[m], hs[m], comp, nu, ap.FORCE, s, p)
             its.append(int(it))
         return p, its, c

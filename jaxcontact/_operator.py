@@ -37,7 +37,8 @@ from ._grid import Grid
 
 Coupling = Literal["normal", "none", "x", "full"]
 _COUPLINGS = ("normal", "none", "x", "full")
-# `HalfSpace.convolve` splits its transforms in two on a CPU from this many cells a side.
+# `HalfSpace.convolve` splits its transforms in two on a CPU from this many cells
+# a side.
 SPLIT_MIN = 256
 
 

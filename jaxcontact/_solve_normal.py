@@ -211,9 +211,10 @@ def solve_normal(
       answer: 1-7 iterations) and where the grid does not halve, else `"nested"` (on
       a rough sphere, float64, rtol 1e-6, measured: load control 1.0x at 256^2, 1.3x
       at 512^2; displacement control 1.5x at 256^2, 1.9x at 512^2;
-      `benchmarks/notes/normal_reentry.md`). The start changes the path, not the solution: the fine solve
-      meets the same tolerance. `iterations` and `applications` count the fine grid's
-      solve only. It compiles one solve per level.
+      `benchmarks/notes/normal_reentry.md`). The start changes the path, not the
+      solution: the fine solve meets the same tolerance. `iterations` and
+      `applications` count the fine grid's solve only. It compiles one solve per
+      level.
     - `throw`: `True` (default, as in `jc.solve`): raise a `ValueError` when the solve
       does not reach its tolerance within `max_steps` (at once for concrete inputs, at
       run time under `jit`/`vmap`/`grad`); `False`: return the solution with
@@ -247,7 +248,8 @@ def solve_normal(
     if start == "nested" and levels == 0:
         raise ValueError(
             f"start='nested' needs a grid whose sides halve to >= {NESTED_COARSEST} "
-            f"cells (both even, at least {2 * NESTED_COARSEST}); got shape {grid.shape}")
+            f"cells (both even, at least {2 * NESTED_COARSEST}); "
+            f"got shape {grid.shape}")
     if start == "hertz" or (start == "auto" and force is not None
                             and isinstance(indenter, Sphere)):
         levels = 0

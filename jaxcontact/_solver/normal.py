@@ -109,10 +109,6 @@ def hertzian_guess(h, load, effective_modulus, cell_area, steps: int = 60):
 REENTRY_RESTART_FRACTION = 0.01
 
 
-def _many_reenter(overlap, n_contact):
-    return jnp.sum(overlap) > REENTRY_RESTART_FRACTION * n_contact
-
-
 class NormalState(NamedTuple):
     """Raw result of a normal solve (all arrays)."""
 
@@ -283,7 +279,7 @@ class PolonskyKeer(AbstractStepSolver):
             reentered = jnp.any(overlap)
             restart = s.restart
         else:
-            reentered = _many_reenter(overlap, n_contact)
+            reentered = jnp.sum(overlap) > REENTRY_RESTART_FRACTION * n_contact
             restart = s.restart | reentered
         beta = jnp.where(restart, 0.0, _safe_div(g_norm, s.g_norm_old))
         t = jnp.where(contact, z + beta * s.t, 0)
