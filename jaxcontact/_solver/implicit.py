@@ -396,6 +396,11 @@ def _tree_dot(a, b):
     return sum(jnp.sum(u * v) for u, v in zip(jax.tree.leaves(a), jax.tree.leaves(b)))
 
 
+# GMRES passes of an adjoint solve: the second starts from the true residual where the
+# first one's running estimate stopped short of it.
+_GMRES_PASSES = 2
+
+
 def _right_preconditioned_gmres(mv, precondition, b, x0, rtol, restart, max_steps,
                                 method="incremental"):
     """`(x, converged)` with `||mv(x) - b|| <= rtol ||b||` (2-norm) by GMRES from `x0`,
@@ -406,17 +411,32 @@ def _right_preconditioned_gmres(mv, precondition, b, x0, rtol, restart, max_step
     stop up to ~2x above it, hence a quarter of `rtol ||b||` ("batched" tests the true
     residual after each cycle: `rtol ||b||`). At most
     `max_steps` iterations in cycles of `restart`. `converged` is judged on `mv(x)`
-    once more (relative 2-norm), as the forward solves and the CG adjoints are."""
-    r0 = jax.tree.map(jnp.subtract, b, mv(x0))
+    once more (relative 2-norm), as the forward solves and the CG adjoints are; where
+    that misses, one more GMRES starts from the true residual (`_GMRES_PASSES`)."""
     b_norm = jnp.sqrt(_tree_dot(b, b))
-    y, _ = jax.scipy.sparse.linalg.gmres(
-        lambda y: mv(precondition(y)), r0, jax.tree.map(jnp.zeros_like, r0), tol=0.0,
-        atol=(0.25 if method == "incremental" else 1.0) * rtol * b_norm,
-        restart=restart, maxiter=max(1, -(-max_steps // restart)), solve_method=method)
-    x = jax.tree.map(jnp.add, x0, precondition(y))
-    residual = jax.tree.map(jnp.subtract, mv(x), b)
-    r2 = _tree_dot(residual, residual)
-    return x, jnp.isfinite(r2) & (r2 <= (rtol * b_norm) ** 2)
+
+    def refine(state):
+        # One GMRES from `x` on the true residual; a pass whose running estimate
+        # stopped short of the true one (round-off, float32) is followed by another.
+        x, r, passes, _ = state
+        y, _ = jax.scipy.sparse.linalg.gmres(
+            lambda y: mv(precondition(y)), jax.tree.map(jnp.negative, r),
+            jax.tree.map(jnp.zeros_like, r), tol=0.0,
+            atol=(0.25 if method == "incremental" else 1.0) * rtol * b_norm,
+            restart=restart, maxiter=max(1, -(-max_steps // restart)),
+            solve_method=method)
+        x = jax.tree.map(jnp.add, x, precondition(y))
+        r = jax.tree.map(jnp.subtract, mv(x), b)
+        r2 = _tree_dot(r, r)
+        return x, r, passes + 1, jnp.isfinite(r2) & (r2 <= (rtol * b_norm) ** 2)
+
+    def again(state):
+        _, _, passes, ok = state
+        return ~ok & (passes < _GMRES_PASSES)
+
+    r0 = jax.tree.map(jnp.subtract, mv(x0), b)
+    x, _, _, ok = jax.lax.while_loop(again, refine, (x0, r0, 0, jnp.array(False)))
+    return x, ok
 
 
 def _gmres_method(adjoint: ImplicitAdjoint) -> str:

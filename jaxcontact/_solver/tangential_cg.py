@@ -27,7 +27,9 @@ so the solver is a projected CG in the spirit of Polonsky & Keer (1999):
   uniform shift of the stick cells;
 - one operator application per iteration while the stick set is steady (the
   displacement is updated by linearity, and recomputed when the projection changed `q`
-  outside the search direction); CG restarts when the stick set changes;
+  outside the search direction); CG restarts when the stick set changes and after
+  every exact displacement (the untracked projection and load-fix changes it takes
+  in break the recurrence);
 - preconditioned with one shear component (`nd = 1`, what `coupled.contact_step`
   passes on non-periodic grids): the direction on the stick and released cells is the
   full-plane inverse of `K_xx` (`precondition.shear_x_preconditioner`: the xx spectrum
@@ -246,9 +248,11 @@ class TangentialCG(AbstractStepSolver):
 
         certify = (~need_exact) & (res <= rtol)
         w_new, ds_new, res = jax.lax.cond(certify, exact, lambda: (w_new, ds_new, res))
+        # An exact displacement takes in the changes the recurrence did not see (the
+        # projections, the load fix): the old direction is no longer conjugate.
         return _TangentialCGState(
             q=q_new, w=w_new, ds=ds_new, t=t, g_old=g_norm,
-            restart=changed | (certify & (res > rtol)), it=it, residual=res,
+            restart=changed | need_exact | (certify & (res > rtol)), it=it, residual=res,
             applications=s.applications + 1 + need_exact + certify)
 
     def tangential_state(self, k: TangentialOperator, s) -> TangentialState:
