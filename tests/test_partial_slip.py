@@ -687,7 +687,8 @@ def test_oblique_ramp_converges_tightly_with_two_shear_components():
     sol = as_np(jc.solve(sc, rtol=1e-10))
     assert sol.iterations.max() <= 60, sol.iterations
     expected = MU * W * np.stack([0.6 * np.asarray(t), 0.4 * np.asarray(t)], axis=1)
-    np.testing.assert_allclose(sol.tangential_force, expected, rtol=0, atol=1e-10 * MU * W)
+    np.testing.assert_allclose(sol.tangential_force, expected, rtol=0,
+                               atol=1e-10 * MU * W)
     assert 0 < sol.stick[-1].sum() < sol.contact[-1].sum()
 
 

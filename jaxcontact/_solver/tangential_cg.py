@@ -252,7 +252,8 @@ class TangentialCG(AbstractStepSolver):
         # projections, the load fix): the old direction is no longer conjugate.
         return _TangentialCGState(
             q=q_new, w=w_new, ds=ds_new, t=t, g_old=g_norm,
-            restart=changed | need_exact | (certify & (res > rtol)), it=it, residual=res,
+            restart=changed | need_exact | (certify & (res > rtol)), it=it,
+            residual=res,
             applications=s.applications + 1 + need_exact + certify)
 
     def tangential_state(self, k: TangentialOperator, s) -> TangentialState:
