@@ -26,15 +26,17 @@ from jaxcontact import enable_compilation_cache  # noqa: E402
 
 _SHARED_CACHE = "JAXCONTACT_TEST_CACHE_DIR"
 _FULL_OPTIMIZATION = "JAXCONTACT_TEST_FULL_OPTIMIZATION"
+_LEGACY_EMITTERS = "--xla_cpu_use_fusion_emitters=false"
 
 
 def _quick_compile(config) -> bool:
-    """Whether this run compiles with JAX's `jax_disable_most_optimizations`: the
-    default selection (`-m 'not slow'`) unless `JAXCONTACT_TEST_FULL_OPTIMIZATION=1`.
-    Its programs are small and their time is mostly compilation; the flag leaves
-    XLA's graph passes (fusion, layout) as they are and lowers LLVM's optimisation
-    level (measured: tests/test_gradients.py 129 -> 90 s). The slow suite, the
-    benchmarks and users compile fully optimised."""
+    """Whether this run compiles with JAX's `jax_disable_most_optimizations` and XLA's
+    legacy fusion emitters: the default selection (`-m 'not slow'`) unless
+    `JAXCONTACT_TEST_FULL_OPTIMIZATION=1`. Its programs are small and their time is
+    mostly compilation; the first flag lowers LLVM's optimisation level (measured:
+    tests/test_gradients.py 129 -> 90 s), the emitters halve the code generation
+    (200 -> 118 s on another machine). The slow suite, the benchmarks and users
+    compile fully optimised."""
     return (os.environ.get(_FULL_OPTIMIZATION) != "1"
             and "not slow" in (config.option.markexpr or ""))
 
@@ -47,6 +49,12 @@ def pytest_configure(config):
     if _quick_compile(config):
         os.environ["JAX_DISABLE_MOST_OPTIMIZATIONS"] = "1"  # subprocesses too
         jax.config.update("jax_disable_most_optimizations", True)
+        # XLA's older (elemental) fusion emitters: half the compile time of a coupled
+        # program, 20 % slower to run (benchmarks/notes/compile_cache.md). Read when
+        # the CPU client starts, i.e. at the first computation, after this hook.
+        flags = os.environ.get("XLA_FLAGS", "")
+        if _LEGACY_EMITTERS not in flags:
+            os.environ["XLA_FLAGS"] = f"{flags} {_LEGACY_EMITTERS}".strip()
     if os.environ.get(_SHARED_CACHE) == "off":
         return
     if not hasattr(config, "workerinput") and _SHARED_CACHE not in os.environ:

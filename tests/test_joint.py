@@ -730,8 +730,8 @@ def test_held_transposed_spectra_give_the_same_step():
     """`jc.solve` hands the joint solver an operator holding its spectra in the
     `(ky, kx)` layout (`HalfSpace.with_transposed_spectra`, built once per solve); the
     symbols are the same numbers as those transposed inside the step, so one coupled
-    step (normal load, F_x = 0.4 mu W) is the same to the last bit, iterations
-    included."""
+    step (normal load, F_x = 0.4 mu W) is the same to round-off (1e-12 of each
+    field's peak; a solve to rtol would differ by ~1e-8), iterations included."""
     n = 24
     grid = jc.Grid((n, n), 4 * hertz_radius())
     op = jc.HalfSpace(grid, "full")
@@ -751,8 +751,12 @@ def test_held_transposed_spectra_give_the_same_step():
 
     a, b = step(op), step(op.with_transposed_spectra())
     assert bool(a.converged) and int(a.iterations) > 5
-    for field in ("pressure", "shear", "iterations", "approach", "delta_t"):
-        np.testing.assert_array_equal(getattr(a, field), getattr(b, field))
+    assert int(a.iterations) == int(b.iterations)
+    # Two programs: XLA may fuse them differently (the suite's legacy fusion
+    # emitters: 1e-13 apart), so round-off, not the last bit.
+    for field in ("pressure", "shear", "approach", "delta_t"):
+        x, y = np.asarray(getattr(a, field)), np.asarray(getattr(b, field))
+        np.testing.assert_allclose(x, y, rtol=0, atol=1e-12 * np.abs(x).max())
 
 
 def _spence_scene(steps):

@@ -258,7 +258,10 @@ def test_a_solved_direction_with_no_input_is_held():
         np.testing.assert_allclose(free.pressure, ref.pressure, rtol=0,
                                    atol=2e-8 * 16 * p_max)
     assert float(jnp.abs(free.tangential_force[:, 1]).max()) <= 1e-8 * MU * W
-    assert np.array_equal(np.asarray(jc.solve(held).pressure), np.asarray(ref.pressure))
+    # The same program: equal to round-off (XLA may compile the two calls with
+    # different fusions), far inside the solver's tolerance above.
+    np.testing.assert_allclose(np.asarray(jc.solve(held).pressure), np.asarray(ref.pressure),
+                               rtol=0, atol=1e-12 * p_max)
 
 
 def test_a_load_above_the_limit_slides_with_another_direction_held():
