@@ -49,6 +49,7 @@ from jax.flatten_util import ravel_pytree
 
 from .._solution import RESULTS
 from .base import AbstractStepSolver, StepGuess, StepProblem, applied_load
+from .gmres import restarted_gmres
 from .normal import inverse_preconditioner
 from .precondition import block_preconditioner, shear_x_preconditioner
 
@@ -404,27 +405,34 @@ _GMRES_PASSES = 2
 def _right_preconditioned_gmres(mv, precondition, b, x0, rtol, restart, max_steps,
                                 method="incremental"):
     """`(x, converged)` with `||mv(x) - b|| <= rtol ||b||` (2-norm) by GMRES from `x0`,
-    right-preconditioned: `jax.scipy.sparse.linalg.gmres` on `mv(M y) = b - mv(x0)`,
-    then `x = x0 + M y`, so its residual is the true one. `method` "incremental" stops
+    right-preconditioned: GMRES on `mv(M y) = b - mv(x0)`, then `x = x0 + M y`, so its
+    residual is the true one. `method` "incremental" (`gmres.restarted_gmres`) stops
     inside a restart cycle as soon as its running estimate meets the target (lineax's
-    GMRES, and the "batched" method, run every cycle to its end); that estimate can
-    stop up to ~2x above it, hence a quarter of `rtol ||b||` ("batched" tests the true
-    residual after each cycle: `rtol ||b||`). At most
-    `max_steps` iterations in cycles of `restart`. `converged` is judged on `mv(x)`
-    once more (relative 2-norm), as the forward solves and the CG adjoints are; where
-    that misses, one more GMRES starts from the true residual (`_GMRES_PASSES`)."""
+    GMRES, and the "batched" method, `jax.scipy.sparse.linalg.gmres`, run every cycle
+    to its end); that estimate can stop up to ~2x above it, hence a quarter of
+    `rtol ||b||` ("batched" tests the true residual after each cycle: `rtol ||b||`).
+    At most `max_steps` iterations in cycles of `restart`. `converged` is judged on
+    `mv(x)` once more (relative 2-norm), as the forward solves and the CG adjoints are;
+    where that misses, one more GMRES starts from the true residual
+    (`_GMRES_PASSES`)."""
     b_norm = jnp.sqrt(_tree_dot(b, b))
 
     def refine(state):
         # One GMRES from `x` on the true residual; a pass whose running estimate
         # stopped short of the true one (round-off, float32) is followed by another.
         x, r, passes, _ = state
-        y, _ = jax.scipy.sparse.linalg.gmres(
-            lambda y: mv(precondition(y)), jax.tree.map(jnp.negative, r),
-            jax.tree.map(jnp.zeros_like, r), tol=0.0,
-            atol=(0.25 if method == "incremental" else 1.0) * rtol * b_norm,
-            restart=restart, maxiter=max(1, -(-max_steps // restart)),
-            solve_method=method)
+        cycles = max(1, -(-max_steps // restart))
+        if method == "incremental":
+            r_flat, unravel = ravel_pytree(r)
+            y_flat, _ = restarted_gmres(
+                lambda v: ravel_pytree(mv(precondition(unravel(v))))[0], -r_flat,
+                jnp.zeros_like(r_flat), 0.25 * rtol * b_norm, restart, cycles)
+            y = unravel(y_flat)
+        else:
+            y, _ = jax.scipy.sparse.linalg.gmres(
+                lambda y: mv(precondition(y)), jax.tree.map(jnp.negative, r),
+                jax.tree.map(jnp.zeros_like, r), tol=0.0, atol=rtol * b_norm,
+                restart=restart, maxiter=cycles, solve_method=method)
         x = jax.tree.map(jnp.add, x, precondition(y))
         r = jax.tree.map(jnp.subtract, mv(x), b)
         r2 = _tree_dot(r, r)
