@@ -81,10 +81,10 @@ def restarted_gmres(
 
         basis, hess, g, rot, k = jax.lax.while_loop(
             more, arnoldi, (basis, hess, g, rot, jnp.array(0)))
-        # Back substitution on the k x k triangle (the rest: identity, zero right side).
+        # Back substitution on the k x k triangle (the rest: identity, zero right side;
+        # the rotated columns are exactly zero below their diagonal and unset from k).
         used = jnp.arange(restart) < k
-        tri = jnp.where(used[:, None] & used[None, :], hess[:restart], 0.0)
-        tri = tri + jnp.diag(jnp.where(used, 0.0, 1.0))
+        tri = hess[:restart] + jnp.diag(jnp.where(used, 0.0, 1.0))
         diag_ok = jnp.all(jnp.where(used, jnp.diagonal(tri) != 0, True))
         y = jax.scipy.linalg.solve_triangular(
             jnp.where(diag_ok, tri, jnp.eye(restart, dtype=dtype)),
