@@ -359,6 +359,10 @@ class AspherSolve:
             "effective_tol": float(res.effective_tol),
             "mean_pressure": float(res.mean_pressure),
             "contact_area": float(res.contact_area),
+            # Operator applications and the time in them (nested: the finest level's
+            # only): the per-application cost beside ours.
+            "matvec_count": int(getattr(res, "matvec_count", -1)),
+            "matvec_s": float(getattr(res, "timings", {}).get("matvec", float("nan"))),
         }
 
 
