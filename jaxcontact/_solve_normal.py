@@ -230,7 +230,8 @@ def solve_normal(
 
     - `solver`: a `jc.PolonskyKeer` (tolerance, iteration bound).
     - `operator`: a prebuilt `jc.HalfSpace(grid)`, to reuse its kernel spectra across
-      calls (built here if omitted).
+      calls. If omitted, the operator of a concrete grid is kept in a small cache of
+      recent grids (as are the nested start's coarse operators), else built here.
     - `start`: the CG's starting pressure. `"hertz"`: the Hertzian guess under load
       control (`p = 0`, the local interference, under displacement control).
       `"nested"`: the same problem solved first on grids halved down to at least 128
