@@ -216,6 +216,10 @@ class AbstractStepSolver(eqx.Module):
         """`None` if this solver can solve `problem`, else why not (one sentence)."""
         return None
 
+    def run_loop(self, problem: StepProblem, setup, state):
+        """The iteration from `state` to the final state: by default one `loop`."""
+        return loop(self, problem, setup, state)
+
     def solve(self, problem: StepProblem, guess: StepGuess) -> StepResult:
         """Solve one step: `iterate(self, problem, guess)`."""
         return iterate(self, problem, guess)
@@ -243,7 +247,7 @@ def run(solver: AbstractStepSolver, problem: StepProblem, guess: StepGuess, *,
         raise ValueError(f"{type(solver).__name__} cannot solve this step: {why}")
     if setup is None:
         setup = solver.setup(problem)
-    state = loop(solver, problem, setup, solver.init(problem, setup, guess))
+    state = solver.run_loop(problem, setup, solver.init(problem, setup, guess))
     return solver.postprocess(problem, setup, state), state
 
 

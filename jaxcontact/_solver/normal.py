@@ -147,9 +147,10 @@ class NormalOperator:
     diagonal of `apply_fn`) and the preconditioner (`None` or `g -> M g`)."""
 
     def __init__(self, apply_fn, h, target, cell_area, *, load_control, rtol,
-                 self_compliance, precondition=None, apply_low=None):
+                 self_compliance, precondition=None, apply_low=None, low=False):
         self.apply_fn = apply_fn
-        self.apply_low = apply_low
+        self.apply_low = apply_low  # `apply_fn` in float32 (mixed precision) or None
+        self.low = low  # this phase steps with `apply_low`
         self.h = h
         self.target = jnp.asarray(target, h.dtype)
         self.cell_area = cell_area
@@ -164,19 +165,19 @@ class NormalOperator:
         operator = problem.operator
         spectrum = problem.compliance * operator.normal_spectrum(problem.poisson)
         # Mixed precision (a float64 solve): float32 operator applications while the
-        # residual is large, a float32 preconditioner throughout (it only shapes the
+        # residual is large (`run_loop`), a float32 preconditioner throughout (it only shapes the
         # search directions; same iterations to rtol 1e-11, measured).
         mixed = solver.mixed_precision and jnp.dtype(problem.dtype) == jnp.float64
-        low = jnp.float32 if mixed else problem.dtype
+        low_dtype = jnp.float32 if mixed else problem.dtype
         precondition = None
         if solver.precondition:
             precondition = _in_dtype(inverse_preconditioner(
-                operator, operator.normal_spectrum(problem.poisson).astype(low),
-                problem.poisson.astype(low)), low)
+                operator, operator.normal_spectrum(problem.poisson).astype(low_dtype),
+                problem.poisson.astype(low_dtype)), low_dtype)
         apply_low = None
         if mixed:
-            spectrum_low = spectrum.astype(low)
-            apply_low = _in_dtype(lambda p: operator.convolve(p, spectrum_low), low)
+            spectrum_low = spectrum.astype(low_dtype)
+            apply_low = _in_dtype(lambda p: operator.convolve(p, spectrum_low), low_dtype)
         return cls(
             lambda p: operator.convolve(p, spectrum),
             problem.gap + problem.history[2], problem.normal_target,
@@ -185,12 +186,13 @@ class NormalOperator:
             self_compliance=operator.diagonal(spectrum), precondition=precondition,
             apply_low=apply_low)
 
-    def with_gap(self, h) -> "NormalOperator":
-        """The same operator for another effective gap (a coupled round's)."""
+    def with_gap(self, h, low=None) -> "NormalOperator":
+        """The same operator for another effective gap (a coupled round's), in the
+        float32 phase if `low` (default: this one's phase)."""
         return NormalOperator(
             self.apply_fn, h, self.target, self.cell_area, load_control=self.load_control,
             rtol=self.rtol, self_compliance=self.k00, precondition=self.precondition,
-            apply_low=self.apply_low)
+            apply_low=self.apply_low, low=self.low if low is None else low)
 
     def rescale(self, p):
         total = self.cell_area * jnp.sum(p)
@@ -288,19 +290,22 @@ class PolonskyKeer(AbstractStepSolver):
             applications=jnp.array(1), p_start=p0, inexact=jnp.array(False))
 
     def terminate(self, problem, k, s):
-        return s.residual <= k.rtol
+        # The float32 phase ends where float64 takes over; both share `max_steps`.
+        stop = max(k.rtol, LOW_PRECISION_ABOVE) if k.low else k.rtol
+        return (s.residual <= stop) | (s.it >= self.max_steps)
+
+    def run_loop(self, problem, k: NormalOperator, state):
+        """The float32 phase (mixed precision), then the float64 one: two loops, so
+        that under `vmap` each applies the operator in one precision."""
+        if k.apply_low is not None:
+            state = loop(self, problem, k.with_gap(k.h, low=True), state)
+        return loop(self, problem, k.with_gap(k.h, low=False), state)
 
     def step(self, problem, k: NormalOperator, s: _NormalCGState) -> _NormalCGState:
         load_control, rtol = k.load_control, k.rtol
         p, u, g = s.p, s.u, s.g
-        if k.apply_low is None:
-            low = jnp.array(False)
-            apply_fn = k.apply_fn
-        else:
-            low = s.residual > LOW_PRECISION_ABOVE
-
-            def apply_fn(x):
-                return jax.lax.cond(low, k.apply_low, k.apply_fn, x)
+        low = k.low
+        apply_fn = k.apply_low if low else k.apply_fn
         overlap = (p <= 0) & (g < 0)
         if k.precondition is None:
             contact = p > 0
@@ -346,7 +351,7 @@ class PolonskyKeer(AbstractStepSolver):
             u_new = u_new * scale
         it = s.it + 1
         # Leaving float32: recompute `u` in float64 and restart the conjugacy.
-        switched = s.inexact & ~low
+        switched = jnp.array(False) if low else s.inexact
         need_exact = changed | (it % self.resync_every == 0) | switched
         u_new = jax.lax.cond(need_exact, lambda: apply_fn(p_new), lambda: u_new)
         g_new, _, res = k.evaluate(u_new, p_new)
@@ -365,7 +370,7 @@ class PolonskyKeer(AbstractStepSolver):
             # A failed certification changes the residual discontinuously: restart.
             restart=reentered | (certify & (res > rtol)) | switched,
             it=it, residual=res, applications=applications, p_start=s.p_start,
-            inexact=low & ~certify)
+            inexact=(~certify) if low else jnp.array(False))
 
     def normal_state(self, k: NormalOperator, s: _NormalCGState) -> NormalState:
         """The final state as a `NormalState` (gap, approach, residual re-evaluated)."""
@@ -389,7 +394,7 @@ class PolonskyKeer(AbstractStepSolver):
         """Solve and return the raw `NormalState` (with the gap and displacement), on
         `setup` if given (a `NormalOperator`, e.g. one gap of a coupled round)."""
         k = self.setup(problem) if setup is None else setup
-        state = loop(self, problem, k, self.init(problem, k, guess))
+        state = self.run_loop(problem, k, self.init(problem, k, guess))
         return self.normal_state(k, state)
 
 
@@ -407,4 +412,4 @@ def polonsky_keer(apply_fn, h, target, cell_area, *, load_control: bool, rtol: f
                        precondition=precondition)
     p0 = jnp.zeros_like(h) if p0 is None else p0
     guess = StepGuess(p0, jnp.zeros((0,) + h.shape, h.dtype))
-    return solver.normal_state(k, loop(solver, None, k, solver.init(None, k, guess)))
+    return solver.normal_state(k, solver.run_loop(None, k, solver.init(None, k, guess)))
