@@ -157,11 +157,13 @@ class Peer:
 class JC:
     """jaxcontact on this problem, one dtype."""
 
-    def __init__(self, n: int, dtype, h: np.ndarray, smooth: bool = False):
+    def __init__(self, n: int, dtype, h: np.ndarray, smooth: bool = False,
+                 periodic: bool = False):
         """`smooth`: the indenter is `jc.Sphere(RADIUS)` (its gap is `h`), as a user
-        would pose Hertz; else `jc.Surface(h)`."""
+        would pose Hertz; else `jc.Surface(h)`. `periodic`: the doubly periodic
+        problem on the same square (Tamaas's ground), else the isolated one."""
         self.dtype = dtype
-        self.grid = jc.Grid((n, n), jnp.asarray(SIZE, dtype))
+        self.grid = jc.Grid((n, n), jnp.asarray(SIZE, dtype), periodic=periodic)
         self.material = jc.Elastic(jnp.asarray(SHEAR, dtype), jnp.asarray(NU, dtype))
         self.surface = (jc.Sphere(jnp.asarray(RADIUS, dtype)) if smooth
                         else jc.Surface(jnp.asarray(h, dtype)))
@@ -283,12 +285,24 @@ def run_n(n: int, tols, repeats: int, peer: Peer | None, tmp: Path, log,
         log(f"n={n} aspher ref: it {a['iterations']} {a['status']} "
             f"conv {a['converged']} vs jc {a['rel_l2_vs_jaxcontact_reference']:.2e}")
 
+    p_ref_jcp = None
+    if peer is not None and tamaas:  # ours on Tamaas's ground: the periodic problem
+        for prec, dt in (("float64", jnp.float64), ("float32", jnp.float32)):
+            jcs[f"{prec} periodic"] = JC(n, dt, h, smooth=not rough, periodic=True)
+        ref_p, _, _ = jcs["float64 periodic"].solve(TIGHT)
+        p_ref_jcp = np.asarray(ref_p.pressure)
+        out["jaxcontact_periodic_reference"] = {
+            "rtol": TIGHT, "iterations": int(ref_p.iterations),
+            "converged": bool(ref_p.converged),
+            "rel_l2_vs_jaxcontact_reference": rel_l2(p_ref_jcp, p_ref_jc)}
+
     p_ref_tm = None
     if peer is not None and tamaas:
         ref_file = tmp / f"tamaas_ref_{n}.npy"
         a = ask_tamaas(TIGHT, str(ref_file))
         p_ref_tm = np.load(ref_file)
         a["rel_l2_vs_jaxcontact_reference"] = rel_l2(p_ref_tm, p_ref_jc)
+        a["rel_l2_vs_jaxcontact_periodic_reference"] = rel_l2(p_ref_tm, p_ref_jcp)
         out["tamaas_reference"] = a
         log(f"n={n} tamaas ref: conv {a['converged']} {a['times_s'][0]:.2f} s vs jc "
             f"{a['rel_l2_vs_jaxcontact_reference']:.2e} (periodic)")
@@ -298,12 +312,14 @@ def run_n(n: int, tols, repeats: int, peer: Peer | None, tmp: Path, log,
         configs += [("aspher", "double", "plain"), ("aspher", "double", "nested"),
                     ("aspher", "single", "nested")]
     if peer is not None and tamaas:
-        configs.append(("tamaas", "double", "periodic"))
+        configs += [("tamaas", "double", "periodic"),
+                    ("jaxcontact", "float64", "periodic"),
+                    ("jaxcontact", "float32", "periodic")]
 
     def once(cfg, tol, save):
         code, prec, mode = cfg
         if code == "jaxcontact":
-            s, dt, w = jcs[prec].solve(tol)
+            s, dt, w = jcs[prec if mode is None else f"{prec} {mode}"].solve(tol)
             p = np.asarray(s.pressure, np.float64)
             return dt, {"iterations": int(s.iterations), "converged": bool(s.converged),
                         "warnings": w}, p
@@ -327,8 +343,8 @@ def run_n(n: int, tols, repeats: int, peer: Peer | None, tmp: Path, log,
         res = {cfg: {"times_s": [], "loadavg": []} for cfg in configs}
         for cfg in configs:  # warm-up (jaxcontact: compile), untimed; gives the error
             dt, info, p = once(cfg, tol, True)
-            ref = {"jaxcontact": p_ref_jc, "aspher": p_ref_as,
-                   "tamaas": p_ref_tm}[cfg[0]]
+            ref = {"jaxcontact": p_ref_jc if cfg[2] is None else p_ref_jcp,
+                   "aspher": p_ref_as, "tamaas": p_ref_tm}[cfg[0]]
             res[cfg].update(info)
             res[cfg]["error"] = rel_l2(p, ref)
             res[cfg]["first_call_s"] = dt
@@ -350,8 +366,8 @@ def run_n(n: int, tols, repeats: int, peer: Peer | None, tmp: Path, log,
     if n == 512:
         floor_after = conv_floor(jcs["float64"], n)
         floor = min(floor_before, floor_after)
-        r64 = [r for r in rows
-               if r["code"] == "jaxcontact" and r["precision"] == "float64"]
+        r64 = [r for r in rows if r["code"] == "jaxcontact"
+               and r["precision"] == "float64" and r["mode"] == "pcg"]
         its = np.array([r["iterations"] for r in r64], float)
         best = np.array([r["best_s"] for r in r64])
         slope = intercept = None
@@ -415,6 +431,11 @@ def summarise(result: dict, targets=(1e-4, 3e-5, 1e-5)) -> dict:
                     ratios[f"{k} best aspher / {ours.split()[1]}"] = best_peer / mine
                 if mine and tamaas:
                     ratios[f"{k} tamaas / {ours.split()[1]}"] = tamaas / mine
+                # Tamaas on its own ground: against our periodic solve.
+                periodic = at.get(f"{ours[:-4]} periodic", {}).get(k)
+                if periodic and tamaas:
+                    name = f"{k} tamaas / {ours.split()[1]} periodic"
+                    ratios[name] = tamaas / periodic
         out[str(case["n"])] = {"time_at_error_s": at, "ratios": ratios}
     return out
 

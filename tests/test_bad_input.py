@@ -360,6 +360,7 @@ class TestSolveNormal:
             (dict(max_steps=2.5), ValueError, ("max_steps", "2.5")),
             (dict(resync_every=0), ValueError, ("resync_every", "0")),
             (dict(precondition="yes"), TypeError, ("precondition", "'yes'")),
+            (dict(mixed_precision=1), TypeError, ("mixed_precision", "1")),
         ],
     )
     def test_polonsky_keer_options(self, kwargs, exc, fragments):
