@@ -1,5 +1,6 @@
 """`jc.solve_normal`: frictionless normal indentation of an elastic half-space."""
 
+import contextlib
 import functools
 
 import equinox as eqx
@@ -113,9 +114,10 @@ def coarse_grids(grid: Grid, levels: int) -> tuple[Grid, ...]:
     coarsest first."""
     nx, ny = grid.shape
     shapes = [(nx >> k, ny >> k) for k in range(levels, 0, -1)]
-    if _validate.is_traced(grid.size):
-        return tuple(Grid(shape, grid.size, periodic=grid.periodic) for shape in shapes)
-    with jax.ensure_compile_time_eval():  # keeps a concrete size concrete under a jit
+    # A concrete size stays concrete under a jit (so its operators can be cached).
+    concrete = (contextlib.nullcontext() if _validate.is_traced(grid.size)
+                else jax.ensure_compile_time_eval())
+    with concrete:
         return tuple(Grid(shape, grid.size, periodic=grid.periodic) for shape in shapes)
 
 
