@@ -3,26 +3,36 @@
     jaxcontact presets                                   list the built-in scenes
     jaxcontact run PRESET_OR_SCENE_FILE --out DIR [--n N] [--steps K] [--float32]
                    [--param KEY=VALUE ...] [--overwrite] [--format netcdf|npz]
+                   [--scheme constant|linear]
 
 `run hertz` solves the elastic Hertz indentation and prints it beside Hertz theory.
 Any other preset (`jc.presets`) or a TOML scene file (schema: README, "Scene files")
-is solved over its time axis with `jc.solve`; the result goes to `DIR/NAME.nc` (netCDF-4:
-`Solution.to_xarray(scene)`, every field with named dimensions and units, the scene in
-the attributes, and a JSON `metadata` attribute: preset or file, parameters, units,
-versions; `jc.load` reads it back) or, with `--format npz`, to `DIR/NAME.npz` (the same
-fields as plain arrays, the grid's `x`, `y` and the `metadata` string), and to PNG
-plots. `DIR` is created and checked before the
-solve; outputs already in it are replaced only with `--overwrite`. Exit status: 0 on
-success, 1 when a time step did not converge, 2 for bad input (unknown preset,
-malformed TOML, bad values, an output folder that cannot be written, existing outputs
-without `--overwrite`).
+is solved over its time axis with `jc.solve`; the result goes to `DIR/NAME.nc`
+(netCDF-4: `Solution.to_xarray(scene)`, every field with named dimensions and units,
+the scene in the attributes, and a JSON `metadata` attribute: preset or file,
+parameters, units, versions; `jc.load` reads it back) or, with `--format npz`, to
+`DIR/NAME.npz` (the same fields as plain arrays, the grid's `x`, `y` and the
+`metadata` string), and to PNG plots. `--scheme` picks `jc.solve`'s time scheme (a
+scene file's `scheme` otherwise, else `"constant"`). `DIR` is created and checked
+before the solve; outputs already in it are replaced only with `--overwrite` (also for
+a second run of the same command: rerun with `--overwrite` or another `--out`). Exit
+status: 0 on success, 1 when a time step did not converge, 2 for bad input (unknown
+preset, malformed TOML, bad values, an output folder that cannot be written, existing
+outputs without `--overwrite`).
+
+Warnings are printed on one line each (`jaxcontact: Category: message`, no source
+line); the format is the CLI's only, restored when `main` returns. An option's value may
+be a negative number in any notation (`--radius -5e-6`: reported as a bad value, not as
+a missing one).
 """
 
 import argparse
 import ast
 import json
+import re
 import sys
 import time
+import warnings
 from pathlib import Path
 
 
@@ -63,6 +73,12 @@ SOLUTION_FIELDS = (
 
 class InputError(Exception):
     """Bad command-line input: reported with exit status 2."""
+
+
+def _num(value) -> str:
+    """A setting as echoed on the console: 6 significant digits, so that a float32
+    value reads as given (0.3, not 0.30000001192092896)."""
+    return f"{float(value):.6g}"
 
 
 def _versions() -> dict:
@@ -202,6 +218,11 @@ def _hertz(args, dtype) -> int:
         raise InputError(
             f"--steps: the hertz example is one load step, got {args.steps}"
         )
+    if args.scheme is not None:
+        raise InputError(
+            f"--scheme: the hertz example is one load step (no time scheme), got "
+            f"{args.scheme!r}"
+        )
     result = f"hertz{_SUFFIX[args.format]}"
     out = _prepare_out(Path(args.out), [result, "hertz.png"], args.overwrite)
     scene = jc.presets.hertz(n=n, dtype=dtype)
@@ -233,8 +254,9 @@ def _hertz(args, dtype) -> int:
     ]
     precision = "float32" if dtype == jnp.float32 else "float64"
     print(
-        f"Hertz indentation: rigid sphere R = {radius} m on G = {shear_modulus} Pa, "
-        f"nu = {poisson}, W = {force} N; grid {n}x{n} over {size:.3e} m ({precision})"
+        f"Hertz indentation: rigid sphere R = {_num(radius)} m on G = "
+        f"{_num(shear_modulus)} Pa, nu = {_num(poisson)}, W = {_num(force)} N; grid "
+        f"{n}x{n} over {size:.3e} m ({precision})"
     )
     print(f"{'quantity':<24}{'jaxcontact':>14}{'Hertz':>14}{'rel. error':>12}")
     for name, num, ref in rows:
@@ -420,7 +442,10 @@ def _run_scene(args, dtype) -> int:
     import jaxcontact as jc
 
     stem, scene, options, meta = _scene_from_args(args, dtype)
-    out = _prepare_out(Path(args.out), _scene_outputs(stem, args.format), args.overwrite)
+    if args.scheme is not None:
+        options = {**options, "scheme": args.scheme}
+    outputs = _scene_outputs(stem, args.format)
+    out = _prepare_out(Path(args.out), outputs, args.overwrite)
     info = _describe(scene)
     nt = info["nt"]
     precision = np.dtype(dtype).name
@@ -429,7 +454,8 @@ def _run_scene(args, dtype) -> int:
         f"grid {info['shape'][0]}x{info['shape'][1]} over "
         f"{info['size'][0]:.4g} m x {info['size'][1]:.4g} m, {nt} time points, "
         f"{info['material']['type']}, coupling={info['coupling']}, "
-        f"friction={info['friction']}, {precision}"
+        f"friction={_num(info['friction'])}, "
+        f"scheme={options.get('scheme', 'constant')}, {precision}"
     )
     print(
         f"solving {nt} time steps (one compiled program; compilation included) ...",
@@ -620,6 +646,14 @@ def _parser():
         "string)",
     )
     run.add_argument(
+        "--scheme",
+        choices=("constant", "linear"),
+        default=None,
+        help="time scheme of jc.solve: constant (tractions piecewise constant in "
+        "time, the paper's; the default) or linear (piecewise linear: what a "
+        "TimeStepWarning advises); overrides a scene file's scheme",
+    )
+    run.add_argument(
         "--param",
         action="append",
         default=[],
@@ -641,11 +675,48 @@ def _parser():
     return parser
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    """`warnings.showwarning` for the CLI: `jaxcontact: Category: message` on one line
+    of stderr (no file, line number or source line: they point into the library)."""
+    text = " ".join(str(message).split())
+    stream = sys.stderr if file is None else file
+    try:
+        stream.write(f"jaxcontact: {category.__name__}: {text}\n")
+    except OSError:  # stderr closed: drop the warning, as warnings.showwarning does
+        pass
+
+
+# A negative number in any notation: argparse (3.11) takes "-5e-6" for an option.
+_NEGATIVE_NUMBER = re.compile(r"-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?|-inf|-nan", re.I)
+
+
+def _attach_negative_values(argv) -> list:
+    """`--opt -5e-6` -> `--opt=-5e-6`, so that argparse reads a negative number as the
+    option's value (and the option's own check names it) instead of failing with
+    "expected one argument"."""
+    out = []
+    for arg in argv:
+        prev = out[-1] if out else ""
+        if (_NEGATIVE_NUMBER.fullmatch(arg) and prev.startswith("--") and prev != "--"
+                and "=" not in prev):
+            out[-1] = f"{prev}={arg}"
+        else:
+            out.append(arg)
+    return out
+
+
 def main(argv=None) -> int:
     """Run the command line `argv` (default: `sys.argv[1:]`); return the exit status."""
+    # The CLI's one-line warnings, restored on return: library users keep their own.
+    with warnings.catch_warnings():
+        warnings.showwarning = _show_warning
+        return _main(sys.argv[1:] if argv is None else list(argv))
+
+
+def _main(argv) -> int:
     parser = _parser()
     try:
-        args = parser.parse_args(argv)
+        args = parser.parse_args(_attach_negative_values(argv))
     except SystemExit as exc:  # argparse: 2 for bad usage, 0 for --help
         return int(exc.code or 0)
     if args.command == "fit":
@@ -663,6 +734,12 @@ def main(argv=None) -> int:
             raise InputError(f"--n must be >= 2, got {args.n}")
         if args.steps is not None and args.steps < 1:
             raise InputError(f"--steps must be >= 1, got {args.steps}")
+        if args.float32:
+            # The presets are defined in float64 and cast: the truncation is the
+            # point of --float32, not news to its user.
+            warnings.filterwarnings(
+                "ignore", "Explicitly requested dtype float64", UserWarning
+            )
         dtype = _setup_jax(args.float32, cache=not args.no_cache)
         if args.target == "hertz":
             return _hertz(args, dtype)

@@ -4,7 +4,7 @@
                    [--poisson NU] [--baseline constant|linear] [--samples A,H,R]
                    [--segments approach,hold,retract] [--steps K]
                    [--contact viscoelastic|piecewise] [--start lee-radok|data]
-                   [--tau-range LO,HI|auto|none] [--no-check-grid]
+                   [--tau-range LO,HI|auto|none] [--no-check-grid] [--overwrite]
 
 Each file is read by `jc.read_afm` (afmformats: `pip install "jaxcontact[afm]"`), its
 segments binned (`--samples`: points in the approach, hold and retract after contact),
@@ -15,9 +15,12 @@ fits 1 to 4 arms and keeps the converged one with the smallest BIC (AIC and BIC 
 every count are reported).
 
 Writes `DIR/STEM_fit.json` (parameters with Gauss-Newton standard deviations, the
-residual RMS and noise estimate, convergence, contact point, units) and
-`DIR/STEM_fit.png` (data, model and residuals per segment). The residual is also
-given in units of the data's own noise (each bin mean's, from the raw curve's
+Young's moduli `E = 2 G (1 + nu)` beside the shear moduli, the residual RMS and noise
+estimate, convergence, contact point, units) and `DIR/STEM_fit.png` (data, model and
+residuals per segment). `STEM` is the file's name minus its final extension
+(`gel.001.jpk-force` -> `gel.001`); outputs already in `DIR` are refused before any fit
+unless `--overwrite` is given, and so are two files with the same stem. The residual is
+also given in units of the data's own noise (each bin mean's, from the raw curve's
 successive differences): about 1 where the model reproduces the data to the noise;
 and the model's discretisation error (the fitted curve on a grid twice as fine;
 `--no-check-grid` skips it). Exit status: 0 on success,
@@ -29,13 +32,15 @@ Compiled programs are cached on disk (`jc.enable_compilation_cache`: folder
 compilation.
 
 The probe radius is not in the files: absolute moduli scale as `R^(-1/2)`; relaxation
-times and modulus ratios do not depend on it.
+times and modulus ratios do not depend on it. A radius outside `RADIUS_WINDOW` times the
+curve's maximum indentation depth warns (`radius_warning`: most likely a unit slip).
 """
 
 import argparse
 import json
 import math
 import sys
+import warnings
 from pathlib import Path
 
 from ._cache import (
@@ -43,14 +48,77 @@ from ._cache import (
     cache_disabled_by_environment,
     enable_compilation_cache,
 )
+from ._cli import InputError, _prepare_out
 
 
 RADIUS_NOTE = ("the probe radius is an input (not in the file): absolute moduli scale "
                "as radius^(-1/2); relaxation times and modulus ratios do not depend on it")
 
 
-class _BadInput(Exception):
-    pass
+# Plausible probe radius / maximum indentation depth of a sphere: below 1e-2 the Hertz
+# contact radius sqrt(R d) would exceed 10 R (a sphere's is at most R); above 1e3 the
+# depth is under R / 1000, at the contact point's uncertainty. A unit slip of the
+# radius (um or nm read as m) is a factor 1e3-1e9, far outside.
+RADIUS_WINDOW = (1e-2, 1e3)
+
+
+class _BadInput(InputError):
+    """Bad input to `jaxcontact fit`: exit status 2, the message names the value."""
+
+
+def output_stem(path) -> str:
+    """The stem of a file's outputs: its name minus the final extension only
+    (`gel.001.jpk-force` -> `gel.001`), so numbered files of a series stay apart."""
+    return Path(path).stem
+
+
+def fit_outputs(stem) -> list:
+    """The files `jaxcontact fit` writes in `--out` for one input of stem `stem`."""
+    return [f"{stem}_fit.json", f"{stem}_fit.png"]
+
+
+def _plan_outputs(files, out, overwrite) -> dict:
+    """`{file: stem}` for the inputs, after checking (before any fit) that no two
+    files share a stem and that `out` can take every output (`_prepare_out`: created,
+    writable, existing outputs refused unless `overwrite`); `InputError` otherwise."""
+    stems = {}
+    for path in files:
+        stem = output_stem(path)
+        twin = next((f for f, s in stems.items() if s == stem), None)
+        if twin is not None:
+            raise _BadInput(f"{twin!r} and {path!r} would both write {stem}_fit.json: "
+                            "fit them into different --out folders")
+        stems[path] = stem
+    _prepare_out(out, [name for s in stems.values() for name in fit_outputs(s)],
+                 overwrite)
+    return stems
+
+
+def radius_warning(radius, depth):
+    """The warning text when the probe radius `radius` [m] is implausible against the
+    curve's maximum indentation depth `depth` [m], else None.
+
+    Plausible: `RADIUS_WINDOW[0] <= radius / depth <= RADIUS_WINDOW[1]`. Outside, the
+    text names the radius, the depth, the rule and, for a radius too large, the
+    reading in um, nm or mm that falls inside the window (the radius is read in m).
+    """
+    lo, hi = RADIUS_WINDOW
+    if not depth > 0:  # no indentation to compare with
+        return None
+    ratio = radius / depth
+    if lo <= ratio <= hi:
+        return None
+    text = (f"--radius {radius:g} m is {ratio:.3g} x the maximum indentation depth "
+            f"{depth:.3g} m; a spherical probe's radius is {lo:g} to {hi:g} x the "
+            "depth (below, its Hertz contact radius sqrt(R d) would exceed 10 R; "
+            "above, the depth is at the contact point's uncertainty)")
+    if ratio > hi:
+        for scale, unit in ((1e-6, "micrometres"), (1e-9, "nanometres"),
+                            (1e-3, "millimetres")):
+            if lo <= ratio * scale <= hi:
+                return (text + f": the radius is in metres; if {radius:g} was meant in "
+                        f"{unit}, pass --radius {radius * scale:g}")
+    return text + ": check the radius's unit (metres) and the contact point"
 
 
 def add_parser(sub):
@@ -64,6 +132,9 @@ def add_parser(sub):
     p.add_argument("--arms", default="2",
                    help="number of Prony arms (1..8), or 'auto' (1..4, smallest BIC)")
     p.add_argument("--out", default="jaxcontact-fit", help="output directory")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace outputs of the same name already in --out (default: "
+                        "refuse, before any fit)")
     p.add_argument("--n", type=int, default=24, help="grid cells per side (default 24)")
     p.add_argument("--poisson", type=float, default=0.5,
                    help="Poisson's ratio, fixed (default 0.5: incompressible)")
@@ -95,8 +166,11 @@ def add_parser(sub):
 
 
 def _check(args):
-    if not (math.isfinite(args.radius) and args.radius > 0):
+    if not math.isfinite(args.radius):
         raise _BadInput(f"--radius must be a finite number > 0 [m], got {args.radius!r}")
+    if args.radius <= 0:
+        raise _BadInput(f"--radius must be a finite number > 0 [m]: the probe radius "
+                        f"must be positive, got {args.radius!r}")
     if args.arms != "auto":
         try:
             arms = int(args.arms)
@@ -181,6 +255,9 @@ def _fit_one(path, args, samples, segments):
                             contact=args.contact)
     except (ValueError, TypeError) as exc:
         raise _BadInput(f"{path}: {exc}") from exc
+    radius_note = radius_warning(args.radius, float(np.max(curve.depth)))
+    if radius_note is not None:
+        warnings.warn(f"{path}: {radius_note}", UserWarning, stacklevel=2)
     names = ("approach", "hold", "retract")
     t, f, d, seg, counts = curve.resampled(dict(zip(names, samples, strict=True)),
                                            return_counts=True)
@@ -225,6 +302,13 @@ def _fit_one(path, args, samples, segments):
                 else None, "std_log": std_log if math.isfinite(std_log) else None}
 
     g0 = float(m.g_inf) + float(np.sum(m.g))
+    parameters = {
+        "g_inf_Pa": entry(m.g_inf, fit.std["g_inf"]),
+        "g_Pa": [entry(v, s) for v, s in zip(np.asarray(m.g), fit.std["g"],
+                                              strict=True)],
+        "tau_s": [entry(v, s) for v, s in zip(np.asarray(m.tau), fit.std["tau"],
+                                               strict=True)],
+    }
     rms = float(np.sqrt(np.mean(fit.residual**2)))
     # The noise of each bin mean from the raw curve's own noise (independent of the
     # fit), and the residual in units of it (1: the model is within the noise).
@@ -248,17 +332,13 @@ def _fit_one(path, args, samples, segments):
         "fitted": fit.kind,
         "radius_m": args.radius,
         "radius_note": RADIUS_NOTE,
+        "radius_warning": radius_note,
         "poisson": args.poisson,
         "tau_bounds_s": list(tau_bounds) if tau_bounds else None,
         "grid": [args.n, args.n],
         "arms": best,
-        "parameters": {
-            "g_inf_Pa": entry(m.g_inf, fit.std["g_inf"]),
-            "g_Pa": [entry(v, s) for v, s in zip(np.asarray(m.g), fit.std["g"],
-                                                  strict=True)],
-            "tau_s": [entry(v, s) for v, s in zip(np.asarray(m.tau), fit.std["tau"],
-                                                   strict=True)],
-        },
+        "parameters": parameters,
+        "youngs_moduli": youngs_moduli(parameters, g0, args.poisson),
         "log_parameter_names": list(fit.parameter_names),
         "log_parameter_correlation": _correlation(fit.covariance),
         "instantaneous_modulus_Pa": g0,
@@ -286,9 +366,34 @@ def _fit_one(path, args, samples, segments):
         "contact_time_s": curve.contact_time,
         "spring_constant_N_per_m": curve.spring_constant,
         "samples": int(t.size),
-        "units": {"time": "s", "force": "N", "depth": "m", "modulus": "Pa (shear)"},
+        "units": {"time": "s", "force": "N", "depth": "m", "modulus": "Pa (shear)",
+                  "youngs_modulus": "Pa"},
     }
     return result, fit, seg
+
+
+def youngs_moduli(parameters, g0, poisson) -> dict:
+    """Young's moduli `E = 2 G (1 + nu)` [Pa] of the fitted shear moduli at the fixed
+    Poisson's ratio `poisson`: `E_inf_Pa` and `E_Pa` (entries as `parameters`'
+    `g_inf_Pa` and `g_Pa`: value, std, std_log) and `E_0_Pa`, the instantaneous
+    modulus from `g0` = g_inf + sum g [Pa]. Poisson's ratio is an input, not fitted:
+    the factor carries no uncertainty."""
+    factor = 2 * (1 + poisson)
+
+    def scaled(e):
+        return {"value": factor * e["value"],
+                "std": None if e["std"] is None else factor * e["std"],
+                "std_log": e["std_log"]}
+
+    return {
+        "E_inf_Pa": scaled(parameters["g_inf_Pa"]),
+        "E_Pa": [scaled(e) for e in parameters["g_Pa"]],
+        "E_0_Pa": factor * g0,
+        "poisson": poisson,
+        "note": (f"Young's moduli E = 2 G (1 + nu) at the given Poisson's ratio nu = "
+                 f"{poisson:g} (fixed); E_0 = 2 G_0 (1 + nu), G_0 = g_inf + sum g: the "
+                 "instantaneous modulus"),
+    }
 
 
 def raw_residual(fit, curve, template, *, max_samples=600):
@@ -365,10 +470,7 @@ def run_fit(args) -> int:
             raise _BadInput('reading AFM files needs afmformats: pip install '
                             '"jaxcontact[afm]"')
         out = Path(args.out)
-        try:
-            out.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise _BadInput(f"--out {args.out!r} cannot be created: {exc}") from exc
+        stems = _plan_outputs(args.files, out, args.overwrite)
         import jax
 
         jax.config.update("jax_enable_x64", True)
@@ -380,7 +482,7 @@ def run_fit(args) -> int:
         status = 0
         for path in args.files:
             result, fit, seg = _fit_one(path, args, samples, segments)
-            stem = Path(path).name.split(".")[0]
+            stem = stems[path]
             json_path = out / f"{stem}_fit.json"
             png = _plot(fit, seg, result, out / f"{stem}_fit.png")
             result["plot"] = str(png) if png else None
@@ -389,7 +491,7 @@ def run_fit(args) -> int:
             if not result["converged"]:
                 status = 1
         return status
-    except _BadInput as exc:
+    except InputError as exc:
         print(f"jaxcontact: error: {exc}", file=sys.stderr)
         return 2
 
@@ -403,9 +505,15 @@ def _print(r, json_path):
 
     print(f"{r['file']}: {r['mode']} ({r['fitted']} fitted), {r['arms']} arm(s), "
           f"{r['samples']} samples, grid {r['grid'][0]}^2")
-    print(f"  g_inf = {fmt(p['g_inf_Pa'])} Pa")
-    for i, (g, tau) in enumerate(zip(p["g_Pa"], p["tau_s"], strict=True), 1):
-        print(f"  g_{i} = {fmt(g)} Pa   tau_{i} = {fmt(tau)} s")
+    e = r["youngs_moduli"]
+    print(f"  shear moduli g [Pa]; Young's moduli E = 2 g (1 + nu) [Pa] at nu = "
+          f"{r['poisson']:g}")
+    print(f"  g_inf = {fmt(p['g_inf_Pa'])} Pa   E_inf = {fmt(e['E_inf_Pa'])} Pa")
+    for i, (g, tau, y) in enumerate(zip(p["g_Pa"], p["tau_s"], e["E_Pa"], strict=True),
+                                    1):
+        print(f"  g_{i} = {fmt(g)} Pa   tau_{i} = {fmt(tau)} s   E_{i} = {fmt(y)} Pa")
+    print(f"  instantaneous: G_0 = {r['instantaneous_modulus_Pa']:.4g} Pa   "
+          f"E_0 = {e['E_0_Pa']:.4g} Pa")
     hold = r["residual_over_noise_hold"]
     print(f"  residual RMS {r['residual_rms']:.3g} = {r['residual_over_noise']:.2f} x the "
           f"noise of the binned data" + (f" (hold: {hold:.2f})" if hold is not None

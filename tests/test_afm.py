@@ -493,7 +493,7 @@ def test_creep_file_hold_within_the_noise_at_64(tmp_path, capsys, monkeypatch):
                  "--samples", "40,100,8", "--segments", "approach,hold",
                  "--out", str(tmp_path)])
     capsys.readouterr()
-    js = json.loads((tmp_path / "fmt-jpk-cc_pr14-polymergel-2021_fit.json").read_text())
+    js = json.loads((tmp_path / "fmt-jpk-cc_pr14-polymergel-2021.06.30_fit.json").read_text())
     assert code == 0 and js["converged"], js.get("message")
     assert js["hold_residual_over_noise_raw"] <= 1.5, js["hold_residual_over_noise_raw"]
     assert js["discretisation_rms"] < js["noise_raw"]
