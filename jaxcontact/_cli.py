@@ -35,6 +35,8 @@ import time
 import warnings
 from pathlib import Path
 
+from ._cli_output import InputError, prepare_out
+
 
 UNITS = {
     "length": "m",
@@ -69,10 +71,6 @@ SOLUTION_FIELDS = (
     "rounds",
     "residual",
 )
-
-
-class InputError(Exception):
-    """Bad command-line input: reported with exit status 2."""
 
 
 def _num(value) -> str:
@@ -144,54 +142,6 @@ def _check_stem(stem) -> str:
     return stem
 
 
-def _prepare_out(out: Path, names, overwrite: bool) -> Path:
-    """Create the output folder and check that `names` can be written in it.
-
-    Run before the solve, so that a bad `--out` costs nothing: an `--out` that is a
-    file, lies under a file, or cannot be created or written raises `InputError`
-    (exit status 2) naming the path; so do existing outputs unless `overwrite`.
-    """
-    import os
-    import tempfile
-
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out {str(out)!r} exists and is not a directory")
-    parent = out
-    while not parent.exists() and parent != parent.parent:
-        parent = parent.parent
-    if not parent.is_dir():
-        raise InputError(
-            f"--out {str(out)!r}: {str(parent)!r} is a file, not a directory"
-        )
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        # os.access is no proof (root, read-only mounts): write a probe file.
-        fd, probe = tempfile.mkstemp(prefix=".jaxcontact-probe-", dir=out)
-        os.close(fd)
-        os.unlink(probe)
-    except OSError as exc:
-        raise InputError(
-            f"--out {str(out)!r} is not a writable directory "
-            f"({exc.strerror or exc})"
-        ) from None
-    for name in names:
-        if (out / name).resolve().parent != out.resolve():
-            raise InputError(f"output {name!r} would be written outside --out {out}")
-    clash = [name for name in names if (out / name).exists()]
-    folders = [name for name in clash if (out / name).is_dir()]
-    if folders:
-        raise InputError(
-            f"--out {str(out)!r}: {', '.join(folders)} is a directory, not an output "
-            "file"
-        )
-    if clash and not overwrite:
-        raise InputError(
-            f"--out {str(out)!r} already holds {', '.join(clash)}: pass --overwrite to "
-            "replace them, or choose another --out"
-        )
-    return out
-
-
 _SUFFIX = {"netcdf": ".nc", "npz": ".npz"}
 
 
@@ -224,7 +174,7 @@ def _hertz(args, dtype) -> int:
             f"{args.scheme!r}"
         )
     result = f"hertz{_SUFFIX[args.format]}"
-    out = _prepare_out(Path(args.out), [result, "hertz.png"], args.overwrite)
+    out = prepare_out(Path(args.out), [result, "hertz.png"], args.overwrite)
     scene = jc.presets.hertz(n=n, dtype=dtype)
     grid, material = scene.grid, scene.material
     radius = float(scene.indenter.radius)
@@ -445,7 +395,7 @@ def _run_scene(args, dtype) -> int:
     if args.scheme is not None:
         options = {**options, "scheme": args.scheme}
     outputs = _scene_outputs(stem, args.format)
-    out = _prepare_out(Path(args.out), outputs, args.overwrite)
+    out = prepare_out(Path(args.out), outputs, args.overwrite)
     info = _describe(scene)
     nt = info["nt"]
     precision = np.dtype(dtype).name

@@ -48,7 +48,7 @@ from ._cache import (
     cache_disabled_by_environment,
     enable_compilation_cache,
 )
-from ._cli import InputError, _prepare_out
+from ._cli_output import InputError, prepare_out
 
 
 RADIUS_NOTE = ("the probe radius is an input (not in the file): absolute moduli scale "
@@ -79,7 +79,7 @@ def fit_outputs(stem) -> list:
 
 def _plan_outputs(files, out, overwrite) -> dict:
     """`{file: stem}` for the inputs, after checking (before any fit) that no two
-    files share a stem and that `out` can take every output (`_prepare_out`: created,
+    files share a stem and that `out` can take every output (`prepare_out`: created,
     writable, existing outputs refused unless `overwrite`); `InputError` otherwise."""
     stems = {}
     for path in files:
@@ -89,7 +89,7 @@ def _plan_outputs(files, out, overwrite) -> dict:
             raise _BadInput(f"{twin!r} and {path!r} would both write {stem}_fit.json: "
                             "fit them into different --out folders")
         stems[path] = stem
-    _prepare_out(out, [name for s in stems.values() for name in fit_outputs(s)],
+    prepare_out(out, [name for s in stems.values() for name in fit_outputs(s)],
                  overwrite)
     return stems
 
