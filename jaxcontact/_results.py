@@ -10,8 +10,11 @@ class RESULTS(lx.RESULTS):  # pyright: ignore[reportGeneralTypeIssues]
 
     stalled = (
         "The contact iteration stopped making progress (its residual did not halve "
-        "for many iterations) and every fallback failed too. Try a tighter `rtol` on "
-        "a finer time discretisation (smaller load increments), or "
+        "for many iterations). A concrete `jc.solve` then solves the scene again with "
+        "fallback solvers, which failed too; under `jit`, `vmap` or `grad` no second "
+        "solve runs: compile the fallback in with "
+        "`solver=jc.Fallback(jc.JointPCG(), jc.Rounds())`. Or try a looser `rtol`, a "
+        "finer time discretisation (smaller load increments), or "
         "`solver=jc.Rounds()`."
     )
     tangential_load_above_friction_limit = (

@@ -269,3 +269,142 @@ def test_both_gmres_methods_of_the_adjoint_give_the_same_gradient():
     np.testing.assert_allclose(batched, incremental, rtol=1e-6)
     with pytest.raises(ValueError, match="gmres_method"):
         jc.ImplicitAdjoint(gmres_method="lgmres")
+
+
+# The three smallest scenes that raised or were silently wrong before (issue 46), on a
+# 20^2 grid of side 3 mm: an elastic load ramp (no history links a step to the
+# output), full coupling with the total slip law, and a Zener step at 0.997 mu W that
+# slips everywhere without sliding (two shear components: the directions fan out).
+GRID_20 = jc.Grid((20, 20), 3e-3)
+TIMES_4 = jnp.linspace(0, 1, 4)
+
+
+def _grad_and_difference(f, x, h):
+    """`(jax.grad(f)(x), central difference of f at rtol FD_RTOL)`."""
+    grad = float(jax.grad(lambda v: f(v, None))(x))
+    fd = (float(f(x + h, FD_RTOL)) - float(f(x - h, FD_RTOL))) / (2 * h)
+    return grad, fd
+
+
+def test_elastic_load_ramp_gradient_with_steps_not_linked_to_the_output():
+    """Each earlier step's adjoint right-hand side is zero while its warm start (the
+    next step's adjoint) is not: the adjoint returns zero for them (it raised)."""
+    def depth(s, rtol):
+        scene = jc.Scene(GRID_20, jc.Sphere(10e-3), jc.Elastic(G, NU), TIMES_4,
+                         jc.Force(s * W * jnp.linspace(0.5, 1.0, 4)))
+        return jc.solve(scene, rtol=rtol).approach[-1] * 1e6
+
+    grad, fd = _grad_and_difference(depth, 1.0, 1e-5)
+    assert abs(grad - fd) <= 1e-5 * abs(fd), (grad, fd)
+
+
+def test_full_coupling_total_slip_gradient():
+    """The total slip law carries nothing between steps: the same zero right-hand
+    sides, through the GMRES adjoint of full coupling (it raised)."""
+    def fx(mu, rtol):
+        scene = jc.Scene(GRID_20, jc.Sphere(10e-3), jc.Elastic(G, NU), TIMES_4,
+                         jc.Force(W), x=jc.Displacement(jnp.linspace(0, 5e-6, 4)),
+                         friction=mu, coupling="full", slip="total")
+        return jc.solve(scene, rtol=rtol).tangential_force[-1, 0] * 1e2
+
+    grad, fd = _grad_and_difference(fx, 0.3, 3e-6)
+    assert abs(grad - fd) <= 1e-5 * abs(fd), (grad, fd)
+
+
+def test_slipping_everywhere_below_the_friction_limit_is_not_gross_sliding():
+    """Full coupling, F = 0.997 mu W: the forward leaves no stick cell but meets the
+    load with fanned-out slip directions; the adjoint must use those equations, not
+    gross sliding's (total shear mu W), which gave -1.59e-6 against -1.233e-5."""
+    material = jc.Zener(mu_inf=G, mu_0=G / 3, tau=0.01, poisson=NU)
+    program = jc.Force(0.045 * jnp.array([0.3, 0.6, 0.8, 0.997]))
+
+    def solve(mu, rtol):
+        scene = jc.Scene(GRID_20, jc.Sphere(10e-3), material, jnp.linspace(0, 0.02, 4),
+                         jc.Force(W), x=program, friction=mu, coupling="full")
+        return jc.solve(scene, rtol=rtol)
+
+    sol = solve(0.3, None)
+    assert bool(sol.sliding[-1]) and not np.any(np.asarray(sol.stick[-1]))
+    np.testing.assert_allclose(float(sol.tangential_force[-1, 0]), 0.045 * 0.997,
+                               rtol=1e-7)
+    grad, fd = _grad_and_difference(lambda mu, rtol: solve(mu, rtol).approach[-1] * 1e6,
+                                    0.3, 3e-6)
+    assert abs(grad - fd) <= 1e-4 * abs(fd), (grad, fd)
+
+
+def test_vmap_grad_equals_the_loop_under_every_compile_mode():
+    """`vmap(grad)` of a coupled scene whose tangential load starts at zero equals the
+    loop of gradients, here under the default test selection's unoptimised code
+    generation (where the derivative of `jnp.min` in the no-contact approach row gave
+    0 / 0 = NaN for two of three batch members)."""
+    a = float(jc.Hertz(R, W, G, NU).contact_radius)
+    grid = jc.Grid((16, 16), 4 * a)
+    times = jnp.linspace(0, 0.02, 4)
+
+    def response(mu):
+        scene = jc.Scene(grid, jc.Sphere(R), jc.Elastic(G, NU), times, jc.Force(W),
+                         x=jc.Force(mu * W * jnp.array([0.0, 0.25, 0.5, 0.7])),
+                         friction=mu, coupling="x")
+        sol = jc.solve(scene)
+        return sol.approach[-1] * 1e6 + sol.tangential_displacement[-1, 0] * 1e6
+
+    points = jnp.array([0.29, 0.3, 0.31])
+    batched = np.asarray(jax.jit(jax.vmap(jax.grad(response)))(points))
+    single = jax.jit(jax.grad(response))
+    loop = np.asarray([float(single(m)) for m in points])
+    assert np.all(np.isfinite(batched)), batched
+    np.testing.assert_allclose(batched, loop, rtol=1e-8)
+
+
+def test_gross_sliding_tangential_displacement_is_the_contact_mean_in_every_solver():
+    """Past mu W under load control `delta_t` is a convention (the indenter slides):
+    the mean of `u_t + history_t` over the contact. `JointPCG` took the largest value
+    for one shear component, so its gradient (the adjoint's mean) was 84 % off."""
+    a = float(jc.Hertz(R, W, G, NU).contact_radius)
+    scene = jc.Scene(jc.Grid((16, 16), 4 * a), jc.Sphere(R), jc.Elastic(G, NU),
+                     jnp.linspace(0, 1, 3), jc.Force(W),
+                     x=jc.Force(0.3 * W * jnp.array([0.3, 0.6, 1.2])), friction=0.3,
+                     coupling="x")
+    joint = jc.solve(scene, solver=jc.JointPCG(rtol=1e-10), throw=False)
+    rounds = jc.solve(scene, solver=jc.Rounds(rtol=1e-10), throw=False)
+    assert bool(joint.sliding[-1]) and bool(rounds.sliding[-1])
+    np.testing.assert_allclose(float(joint.tangential_displacement[-1, 0]),
+                               float(rounds.tangential_displacement[-1, 0]), rtol=1e-6)
+
+
+def test_adjoint_solves_are_well_posed_for_zero_and_tiny_right_hand_sides():
+    """The adjoint's linear solves (GMRES and projected CG): a zero right-hand side
+    gives zero, converged, whatever the warm start (it never passed its stopping test
+    relative to `||b|| = 0`); a right-hand side of 1e-30 in float32 is solved to the
+    accuracy of a unit one (its squared norm underflows)."""
+    from jaxcontact._solver.implicit import _right_preconditioned_gmres, _set_adjoint
+
+    rng = np.random.default_rng(0)
+    m = rng.normal(size=(40, 40))
+    a = m @ m.T / 40 + np.eye(40)  # symmetric positive definite
+    b = rng.normal(size=40)
+    guess = rng.normal(size=40)
+    exact = np.linalg.solve(a, b)
+    every = jnp.ones(40, bool)
+    for dtype, rtol in ((jnp.float64, 1e-10), (jnp.float32, 1e-5)):
+        a_j = jnp.asarray(a, dtype)
+        mv = lambda v: a_j @ v  # noqa: E731
+        zero = jnp.zeros(40, dtype)
+        x, ok = _right_preconditioned_gmres(mv, lambda v: v, zero,
+                                            jnp.asarray(guess, dtype), rtol, 40, 400)
+        assert bool(ok) and not np.any(np.asarray(x))
+        lam, lam_m, ok = _set_adjoint(mv, every, False, 1.0, zero, jnp.zeros((), dtype),
+                                      jnp.asarray(guess, dtype), rtol, 400)
+        assert bool(ok) and not np.any(np.asarray(lam)) and float(lam_m) == 0
+        for scale in (1.0, 1e-30):
+            rhs = jnp.asarray(scale * b, dtype)
+            x, ok = _right_preconditioned_gmres(
+                mv, lambda v: v, rhs, jnp.asarray(guess, dtype), rtol, 40, 400)
+            assert bool(ok)
+            np.testing.assert_allclose(np.asarray(x, float) / scale, exact,
+                                       rtol=100 * rtol, atol=100 * rtol)
+            lam, _, ok = _set_adjoint(mv, every, False, 1.0, rhs, jnp.zeros((), dtype),
+                                      jnp.asarray(guess, dtype), rtol, 400)
+            assert bool(ok)
+            np.testing.assert_allclose(np.asarray(lam, float) / scale, exact,
+                                       rtol=100 * rtol, atol=100 * rtol)

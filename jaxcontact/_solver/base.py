@@ -117,7 +117,11 @@ class StepResult(eqx.Module):
     - `pressure` `(nx, ny)`, `shear` `(nd, nx, ny)` [stress];
     - `approach` [length], `delta_t` `(nd,)` rigid tangential displacements [length];
     - `slip` `(nd, nx, ny)`: total slip `u_t - delta_t` after the step [length];
-    - `stick` `(nx, ny)`; `sliding`: contact but no stick cell;
+    - `stick` `(nx, ny)`; `sliding`: contact but no stick cell; `gross_sliding`: the
+      step was solved as gross sliding under tangential load control (the load at the
+      friction limit, every cell's shear `mu p` along it; `tangential.gross_sliding`).
+      A step can slip everywhere below the limit (two shear components: the slip
+      directions fan out) and be `sliding` but not `gross_sliding`;
     - `iterations` (inner iterations, all solvers of a composition summed), `rounds`
       (normal/tangential rounds, or friction-bound updates of the joint iteration),
       `fallbacks` (secondary solvers run);
@@ -133,6 +137,7 @@ class StepResult(eqx.Module):
     slip: Float[Array, "nd nx ny"]
     stick: Bool[Array, "nx ny"]
     sliding: Bool[Array, ""]
+    gross_sliding: Bool[Array, ""]
     iterations: Int[Array, ""]
     rounds: Int[Array, ""]
     residual: Float[Array, ""]
@@ -148,7 +153,8 @@ class StepResult(eqx.Module):
 
 
 def make_result(*, pressure, shear, approach, delta_t, slip, stick, sliding, iterations,
-                rounds, residual, converged, result=None) -> StepResult:
+                rounds, residual, converged, result=None,
+                gross_sliding=False) -> StepResult:
     """A `StepResult`, its `result` `successful` / `max_steps_reached` from
     `converged` unless given; no fallback used."""
     if result is None:
@@ -156,6 +162,7 @@ def make_result(*, pressure, shear, approach, delta_t, slip, stick, sliding, ite
     return StepResult(
         pressure=pressure, shear=shear, approach=jnp.asarray(approach),
         delta_t=delta_t, slip=slip, stick=stick, sliding=jnp.asarray(sliding),
+        gross_sliding=jnp.asarray(gross_sliding),
         iterations=jnp.asarray(iterations, jnp.int32),
         rounds=jnp.asarray(rounds, jnp.int32), residual=jnp.asarray(residual),
         converged=jnp.asarray(converged), result=result,

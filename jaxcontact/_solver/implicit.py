@@ -154,7 +154,11 @@ def _residual(operator, config, frozen, x, theta):
         # No contact (the load back at zero): the indenter touches the surface, whose
         # recovery the history carries, at its highest point (the forward's
         # `gap_residual`): the approach depends on the material through `history`.
-        touching = jnp.min(h + history[2] + uz) / kz
+        # The lowest point by index, not `jnp.min`: min's derivative divides by the
+        # count of entries equal to it, 0 / 0 where a program recomputes the field
+        # with other round-off (vmap under XLA's unoptimised code generation).
+        surface = (h + history[2] + uz).ravel()
+        touching = surface[jnp.argmin(surface)] / kz
         f_dz = jnp.where(any_contact, (area * jnp.sum(p) - w_target) / scale, dz - touching)
     else:
         f_dz = dz - w_target / kz
@@ -224,8 +228,30 @@ def _set_adjoint(a_full, active, load_control, a, b_bar, z_bar, guess, rtol, max
     with `precondition` (`r -> M r`, an approximate inverse of `a_full`, e.g.
     `normal.inverse_preconditioner`), projected PCG with `P M P`: two FFT pairs per
     iteration, several times fewer iterations (as the forward `normal.py`).
+    The stopping rule is `||r|| <= rtol ||b||` on a system scaled to `max |b| = 1`
+    (`_unit_scale`), started from `guess` only where it is closer than zero: a step
+    whose right-hand side is zero (nothing links it to the output) returns zero, and
+    one whose right-hand side is tiny (1e-19) is solved to the same relative accuracy
+    whatever its warm start and without under- or overflow in float32.
     **Returns:** `(lambda, lam_m, converged)`.
     """
+    scale = _unit_scale((b_bar, z_bar))
+    lam, lam_m, converged = _set_adjoint_scaled(
+        a_full, active, load_control, a, b_bar / scale, z_bar / scale, guess / scale,
+        rtol, maxiter, precondition)
+    return lam * scale, lam_m * scale, converged
+
+
+def _unit_scale(tree):
+    """`max |v|` over the leaves of `tree`, or 1 where they are all zero: the factor
+    that brings a linear system's right-hand side to unit size."""
+    size = jnp.max(jnp.stack([jnp.max(jnp.abs(v)) for v in jax.tree.leaves(tree)]))
+    return jnp.where(size > 0, size, 1.0)
+
+
+def _set_adjoint_scaled(a_full, active, load_control, a, b_bar, z_bar, guess, rtol,
+                        maxiter, precondition):
+    """`_set_adjoint` on a right-hand side of unit size."""
     dtype = b_bar.dtype
     c = active.astype(dtype)
     n_s = jnp.sum(c)
@@ -243,6 +269,11 @@ def _set_adjoint(a_full, active, load_control, a, b_bar, z_bar, guess, rtol, max
     rhs = project(b)
     v = project(guess)
     r = rhs - project(a_full(v))
+    # The warm start only where its residual is below the zero start's (`rhs`): a
+    # previous step's adjoint is no start for a step with a zero right-hand side.
+    warm = jnp.sum(r * r) < jnp.sum(rhs * rhs)
+    v = jnp.where(warm, v, 0.0)
+    r = jnp.where(warm, r, rhs)
     # Relative to the unprojected right-hand side: when b_bar is (nearly) uniform on S
     # the projected one vanishes and the adjoint is all in lam_m.
     limit = (rtol * jnp.sqrt(jnp.sum(b * b))) ** 2
@@ -414,7 +445,19 @@ def _right_preconditioned_gmres(mv, precondition, b, x0, rtol, restart, max_step
     At most `max_steps` iterations in cycles of `restart`. `converged` is judged on
     `mv(x)` once more (relative 2-norm), as the forward solves and the CG adjoints are;
     where that misses, one more GMRES starts from the true residual
-    (`_GMRES_PASSES`)."""
+    (`_GMRES_PASSES`).
+
+    As `_set_adjoint`, the system is scaled to `max |b| = 1` and started from `x0` only
+    where `x0` is closer than zero: a zero `b` returns zero, converged."""
+    scale = _unit_scale(b)
+    x, ok = _scaled_gmres(
+        mv, precondition, jax.tree.map(lambda v: v / scale, b),
+        jax.tree.map(lambda v: v / scale, x0), rtol, restart, max_steps, method)
+    return jax.tree.map(lambda v: v * scale, x), ok
+
+
+def _scaled_gmres(mv, precondition, b, x0, rtol, restart, max_steps, method):
+    """`_right_preconditioned_gmres` on a right-hand side of unit size."""
     b_norm = jnp.sqrt(_tree_dot(b, b))
 
     def refine(state):
@@ -443,7 +486,14 @@ def _right_preconditioned_gmres(mv, precondition, b, x0, rtol, restart, max_step
         return ~ok & (passes < _GMRES_PASSES)
 
     r0 = jax.tree.map(jnp.subtract, mv(x0), b)
-    x, _, _, ok = jax.lax.while_loop(again, refine, (x0, r0, 0, jnp.array(False)))
+    r0_2 = _tree_dot(r0, r0)
+    # The warm start only where it is closer than zero (whose residual is `-b`).
+    warm = r0_2 < b_norm**2
+    x0 = jax.tree.map(lambda v: jnp.where(warm, v, 0.0), x0)
+    r0 = jax.tree.map(lambda v, w: jnp.where(warm, v, -w), r0, b)
+    r0_2 = jnp.where(warm, r0_2, b_norm**2)
+    ok0 = r0_2 <= (rtol * b_norm) ** 2
+    x, _, _, ok = jax.lax.while_loop(again, refine, (x0, r0, 0, ok0))
     return x, ok
 
 
@@ -692,7 +742,9 @@ def differentiable_step(
         # A cell of zero slip keeps its row (there it is `q`: `_residual`'s guard).
         slip_weight = sg(jnp.where(size > 0, size / jnp.where(size > 0, scale, 1), 1.0))
         slip_direction = sg(increment / jnp.where(size > 0, size, 1)[None])
-    frozen = (contact, res.stick & contact, slip_sign, res.sliding, kz, kt, fixed,
+    # The gross-sliding equations only where the forward solved the step as such:
+    # no stick cell below the friction limit (2-D slip fanning out) is not sliding.
+    frozen = (contact, res.stick & contact, slip_sign, res.gross_sliding, kz, kt, fixed,
               slip_weight, slip_direction)
     theta = (jnp.asarray(compliance, dtype), jnp.asarray(poisson, dtype),
              jnp.asarray(problem.friction, dtype), problem.gap, problem.history,

@@ -46,7 +46,8 @@ This differs from a textbook projected PCG in:
 
 Gross sliding under tangential load control (`|F| >= mu W` to `rtol / 2`,
 `tangential.gross_sliding`, `F` the load of the load-controlled directions,
-`base.applied_load`): `q = B F/|F|` on every contact cell, only `p` iterates.
+`base.applied_load`): `q = B F/|F|` on every contact cell, only `p` iterates; the
+load-controlled directions' `delta_t` is the mean of `u_t + b` over the contact.
 Design notes and the measurements behind every default: `benchmarks/notes/joint.md`.
 """
 
@@ -63,6 +64,7 @@ from .precondition import block_preconditioner
 from .residual import (
     coulomb_residual,
     gap_residual,
+    masked_mean,
     rigid_tangential_displacement,
 )
 from .tangential import dot as _dot
@@ -333,6 +335,10 @@ class _JointOperator:
         inv = _inv_norm(q)
         dt = rigid_tangential_displacement(w, stick, q * inv[None], contact_t, fc,
                                            tangential_target)
+        if self.any_force:
+            # Gross sliding: a load-controlled direction's delta_t is the mean of w
+            # over the contact (no stick cell fixes it), as `Rounds` and the adjoint.
+            dt = jnp.where(sliding & jnp.asarray(fc), masked_mean(w, contact_t), dt)
         ds = w - dt[:, None, None]
         ds_mag = jnp.sqrt(_dot(ds, ds))
         slip_violation = ds + (ds_mag * inv)[None] * q
@@ -767,7 +773,8 @@ class JointPCG(AbstractStepSolver):
         return make_result(
             pressure=p, shear=x[1:], approach=ev.dz, delta_t=ev.dt,
             slip=ev.ds + problem.previous_slip, stick=ev.stick,
-            sliding=jnp.any(contact) & ~jnp.any(ev.stick), iterations=s.it,
+            sliding=jnp.any(contact) & ~jnp.any(ev.stick), gross_sliding=s.sliding,
+            iterations=s.it,
             rounds=s.updates, residual=ev.residual, converged=converged, result=result)
 
     def statistics(self, problem, guess):

@@ -219,10 +219,18 @@ class Rounds(AbstractStepSolver):
         contact = p > 0
         stick = tang.stick
         sliding = jnp.any(contact) & ~jnp.any(stick)
+        # The last round's tangential solve decided gross sliding on this pressure.
+        gross = jnp.array(False)
+        if any(problem.tangential_force_control):
+            f_norm, _ = applied_load(problem.tangential_target,
+                                     problem.tangential_force_control)
+            limit = problem.operator.grid.cell_area * jnp.sum(problem.friction * p)
+            gross = gross_sliding(f_norm, limit, k.rtol)
         result = step_outcome(problem, p, converged, k.rtol)
         return make_result(
             pressure=p, shear=state.shear, approach=approach,
             delta_t=tang.delta, slip=tang.slip + problem.previous_slip, stick=stick,
-            sliding=sliding, iterations=state.iterations, rounds=state.rounds,
+            sliding=sliding, gross_sliding=gross, iterations=state.iterations,
+            rounds=state.rounds,
             residual=residual, converged=converged,
             result=result)

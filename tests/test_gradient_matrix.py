@@ -1,0 +1,101 @@
+"""Gradients across the scene space against central differences.
+
+The cases are `benchmarks/gradient_matrix.py`'s: the default selection runs its
+`default_slice()` (every axis value at least twice: coupling, normal control and
+program, tangential program, material, slip law, time scheme, periodic grid,
+`jc.Surface`, the parameter, and `jit` / eager `grad` / forward-mode `jvp` / `vmap` /
+float32), the slow selection the whole matrix. They run in one subprocess compiled as
+users compile: without the default selection's quick-compile flags
+(`tests/conftest.py`), whose code generation changes round-off. The subprocess runs
+once per selection, on one test worker (`xdist_group`).
+
+Each gradient must be within 1e-5 (float64; 1e-2 float32) of the central difference of
+a forward solved to `rtol = 1e-10`, relative to the larger of the two (plus a floor
+of 1e-9 of the output over the parameter), and `vmap(grad)` equal to the loop of
+gradients to 1e-8. A scene on an active-set change may instead match one of its
+one-sided differences (to 1e-3): these are listed in `KNOWN_KINKS`.
+"""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+import gradient_matrix as gm  # noqa: E402
+
+
+# Scenes of the matrix that sit on an active-set change at their parameter value.
+KNOWN_KINKS: set[str] = set()
+
+
+def _users_environment():
+    """The environment without the quick-compile settings of `tests/conftest.py`."""
+    env = dict(os.environ)
+    env.pop("JAX_DISABLE_MOST_OPTIMIZATIONS", None)
+    flags = env.get("XLA_FLAGS", "").replace("--xla_cpu_use_fusion_emitters=false", "")
+    env["XLA_FLAGS"] = flags.strip()
+    env.pop("JAXCONTACT_NO_CACHE", None)
+    return env
+
+
+def _run(selection, folder):
+    out = folder / f"{selection}.json"
+    subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "gradient_matrix.py"), "--slice",
+         selection, "--out", str(out)],
+        env=_users_environment(), capture_output=True, text=True, timeout=3000)
+    return {row["name"]: row for row in json.loads(out.read_text())["rows"]}
+
+
+@pytest.fixture(scope="module")
+def default_rows(tmp_path_factory):
+    return _run("default", tmp_path_factory.mktemp("gradient_matrix"))
+
+
+@pytest.fixture(scope="module")
+def all_rows(tmp_path_factory):
+    return _run("all", tmp_path_factory.mktemp("gradient_matrix_all"))
+
+
+def _assert_right(case, row):
+    assert row["status"] != "refused", f"{case.name} raised: {row['message']}"
+    g, cd = row["gradient"], row["cd"]
+    tol = 1e-2 if case.mode == "float32" else 1e-5
+    if case.name in KNOWN_KINKS:
+        sides = (row["left_side"], row["right_side"])
+        assert min(abs(g - s) / abs(s) for s in sides) <= 1e-3, row
+        return
+    floor = 1e-9 * abs(row["value"]) / abs(case.theta0)
+    assert abs(g - cd) <= tol * max(abs(cd), abs(g)) + floor, row
+    assert row["extra"].get("vmap_vs_loop", 0.0) <= 1e-8, row
+
+
+def test_the_default_slice_covers_every_axis_value_twice():
+    """The slice meets every value of every axis of the matrix at least twice."""
+    slice_ = gm.default_slice()
+    for field in ("coupling", "normal", "program", "tangential", "material", "slip",
+                  "scheme", "periodic", "surface", "parameter", "mode", "output"):
+        values = {getattr(c, field) for c in gm.all_cases()}
+        for value in values:
+            count = sum(getattr(c, field) == value for c in slice_)
+            assert count >= 2, f"{field}={value!r} appears {count} times"
+    assert len(slice_) >= 30
+
+
+@pytest.mark.xdist_group("gradient_matrix")
+@pytest.mark.parametrize("case", gm.default_slice(), ids=lambda c: c.name)
+def test_gradient_against_central_differences(default_rows, case):
+    _assert_right(case, default_rows[case.name])
+
+
+@pytest.mark.slow
+@pytest.mark.xdist_group("gradient_matrix_all")
+@pytest.mark.parametrize("case", gm.all_cases(), ids=lambda c: c.name)
+def test_whole_gradient_matrix(all_rows, case):
+    _assert_right(case, all_rows[case.name])
