@@ -40,6 +40,7 @@ Usage::
     python benchmarks/gradient_matrix.py                  # every case
     python benchmarks/gradient_matrix.py --slice default  # the default test suite's
     python benchmarks/gradient_matrix.py --only zener     # names containing "zener"
+    python benchmarks/gradient_matrix.py --case NAME      # one case
 
 Results: `benchmarks/results/gradient_matrix.json` (or `--out`), a table on stdout.
 """
@@ -495,9 +496,14 @@ def main(argv=None):
     parser.add_argument("--slice", choices=("all", "default"), default="all")
     parser.add_argument("--only", default=None,
                         help="names containing one of these comma-separated texts")
+    parser.add_argument("--case", default=None, help="the one case of this name")
     parser.add_argument("--out", default=None, help="JSON path")
     args = parser.parse_args(argv)
     cases = all_cases() if args.slice == "all" else default_slice()
+    if args.case:
+        cases = [c for c in all_cases() + default_slice() if c.name == args.case][:1]
+        if not cases:
+            parser.error(f"no case named {args.case!r}")
     if args.only:  # comma-separated parts of names
         parts = args.only.split(",")
         cases = [c for c in cases if any(part in c.name for part in parts)]

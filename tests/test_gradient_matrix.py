@@ -4,10 +4,10 @@ The cases are `benchmarks/gradient_matrix.py`'s: the default selection runs its
 `default_slice()` (every axis value at least twice: coupling, normal control and
 program, tangential program, material, slip law, time scheme, periodic grid,
 `jc.Surface`, the parameter, and `jit` / eager `grad` / forward-mode `jvp` / `vmap` /
-float32), the slow selection the whole matrix. They run in one subprocess compiled as
+float32), the slow selection the whole matrix. They run compiled as
 users compile: without the default selection's quick-compile flags
-(`tests/conftest.py`), whose code generation changes round-off. The subprocess runs
-once per selection, on one test worker (`xdist_group`).
+(`tests/conftest.py`), whose code generation changes round-off. Each case runs in a
+process of its own, so that the test workers share them out.
 
 Each gradient must be within 1e-5 (float64; 1e-2 float32) of the central difference of
 a forward solved to `rtol = 1e-10`, relative to the larger of the two (plus a floor
@@ -49,25 +49,18 @@ def _users_environment():
     return env
 
 
-def _run(selection, folder):
-    out = folder / f"{selection}.json"
+def _run(case, folder):
+    """The matrix row of `case`, computed in a fresh process (one per case: the test
+    workers share them out)."""
+    out = folder / "row.json"
     run = subprocess.run(
-        [sys.executable, str(ROOT / "benchmarks" / "gradient_matrix.py"), "--slice",
-         selection, "--out", str(out)],
-        env=_users_environment(), capture_output=True, text=True, timeout=6000)
-    # Exit 1 means some case is wrong (each test says which); anything else crashed.
+        [sys.executable, str(ROOT / "benchmarks" / "gradient_matrix.py"), "--case",
+         case.name, "--out", str(out)],
+        env=_users_environment(), capture_output=True, text=True, timeout=1200)
+    # Exit 1 means the case is wrong (the assertions say how); anything else crashed.
     assert run.returncode in (0, 1) and out.exists(), run.stderr[-3000:]
-    return {row["name"]: row for row in json.loads(out.read_text())["rows"]}
-
-
-@pytest.fixture(scope="module")
-def default_rows(tmp_path_factory):
-    return _run("default", tmp_path_factory.mktemp("gradient_matrix"))
-
-
-@pytest.fixture(scope="module")
-def all_rows(tmp_path_factory):
-    return _run("all", tmp_path_factory.mktemp("gradient_matrix_all"))
+    (row,) = json.loads(out.read_text())["rows"]
+    return row
 
 
 def _assert_right(case, row):
@@ -96,14 +89,12 @@ def test_the_default_slice_covers_every_axis_value_twice():
     assert len(slice_) >= 30
 
 
-@pytest.mark.xdist_group("gradient_matrix")
 @pytest.mark.parametrize("case", gm.default_slice(), ids=lambda c: c.name)
-def test_gradient_against_central_differences(default_rows, case):
-    _assert_right(case, default_rows[case.name])
+def test_gradient_against_central_differences(case, tmp_path):
+    _assert_right(case, _run(case, tmp_path))
 
 
 @pytest.mark.slow
-@pytest.mark.xdist_group("gradient_matrix_all")
 @pytest.mark.parametrize("case", gm.all_cases(), ids=lambda c: c.name)
-def test_whole_gradient_matrix(all_rows, case):
-    _assert_right(case, all_rows[case.name])
+def test_whole_gradient_matrix(case, tmp_path):
+    _assert_right(case, _run(case, tmp_path))
