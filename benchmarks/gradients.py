@@ -6,7 +6,11 @@ mu_inf = 1.93 MPa, mu_inf / mu_0 = 4, tau = 0.01 s, nu = 0.3, domain 4 a):
 - `normal`: frictionless creep indentation, n^2 grid x nt steps;
 - `slip`: the same with mu = 0.3 and a tangential displacement ramped over the
   history (coupling "none": partial slip in x);
-- `coupled`: `slip` with coupling "full" (p, q_x, q_y interact; GMRES adjoint).
+- `coupled`: `slip` with coupling "full" (p, q_x, q_y interact; GMRES adjoint);
+- `coupled_x`: `slip` with coupling "x".
+
+`--controls force,displacement`: the normal load ramped as a force (default) or as the
+Hertz approach of that force (displacement control), for every kind.
 
 For each: forward time (`jc.solve`, jitted, after compilation, best of repeats), gradient
 time (`jax.grad` of a scalar of the solution w.r.t. (mu_0, tau, poisson, W), jitted,
@@ -17,6 +21,8 @@ Usage::
 
     python benchmarks/gradients.py                 # 128^2 x 100 steps (the issue's scene)
     python benchmarks/gradients.py --n 64 --nt 40
+    python benchmarks/gradients.py --n 64 --nt 50 --kinds normal,slip,coupled_x,coupled \
+        --controls force,displacement --out benchmarks/results/gradients_64.json
 
 Results go to `benchmarks/results/gradients.json`.
 """
@@ -40,11 +46,17 @@ import jaxcontact as jc  # noqa: E402
 R, W, G, NU = 10e-3, 0.15, 1.93e6, 0.3
 
 
-def make_loss(n, nt, kind):
+def make_loss(n, nt, kind, control="force"):
     a = float(jc.Hertz(R, W, G, NU).contact_radius)
     grid = jc.Grid((n, n), 4 * a)
     times = jnp.linspace(0.0, 0.04, nt)
     ramp = jnp.minimum(1.0, 0.2 + times / 0.02)
+
+    def normal(load):
+        if control == "force":
+            return jc.Force(load * ramp)
+        # The Hertz approach of the load at mu_inf, ramped the same way.
+        return jc.Displacement((load / W) * (a * a / R) * ramp)
 
     def scene_of(params):
         mu_0, tau, poisson, load = params
@@ -55,14 +67,15 @@ def make_loss(n, nt, kind):
         elif kind in ("coupled", "coupled_x"):
             extra = dict(x=jc.Displacement(1.5e-6 * times / times[-1]), friction=0.3,
                          coupling="full" if kind == "coupled" else "x")
-        return jc.Scene(grid, jc.Sphere(R), material, times, jc.Force(load * ramp), **extra)
+        return jc.Scene(grid, jc.Sphere(R), material, times, normal(load), **extra)
 
     def forward(params):
         return jc.solve(scene_of(params))
 
     def loss(params):
         sol = forward(params)
-        return 1e6 * jnp.sum(sol.approach) + jnp.sum(sol.tangential_force)
+        return (1e6 * jnp.sum(sol.approach) + jnp.sum(sol.normal_force)
+                + jnp.sum(sol.tangential_force))
 
     return forward, loss
 
@@ -88,8 +101,8 @@ def _memory(fn, arg):
         return {"error": repr(error)}
 
 
-def run_case(n, nt, kind, repeats):
-    forward, loss = make_loss(n, nt, kind)
+def run_case(n, nt, kind, repeats, control="force"):
+    forward, loss = make_loss(n, nt, kind, control)
     params = jnp.array([G / 4, 0.01, NU, W])
     fwd = jax.jit(forward)
     grad = jax.jit(jax.grad(loss))
@@ -102,7 +115,7 @@ def run_case(n, nt, kind, repeats):
     t_fwd = _best(fwd, params, repeats)
     t_grad = _best(grad, params, repeats)
     return {
-        "kind": kind, "n": n, "nt": nt,
+        "kind": kind, "control": control, "n": n, "nt": nt,
         "forward_s": t_fwd, "gradient_s": t_grad, "ratio": t_grad / t_fwd,
         "first_call_forward_s": compile_fwd, "first_call_gradient_s": compile_grad,
         "forward_iterations_total": int(jnp.sum(sol.iterations)),
@@ -119,12 +132,15 @@ def main():
     parser.add_argument("--nt", type=int, default=100)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--kinds", default="normal,slip")
+    parser.add_argument("--controls", default="force",
+                        help="normal control(s): force, displacement or both")
     parser.add_argument("--out", default=str(Path(__file__).parent / "results" / "gradients.json"))
     args = parser.parse_args()
     load_before = os.getloadavg()
     cases = []
-    for kind in args.kinds.split(","):
-        case = run_case(args.n, args.nt, kind, args.repeats)
+    for kind, control in [(k, c) for c in args.controls.split(",")
+                          for k in args.kinds.split(",")]:
+        case = run_case(args.n, args.nt, kind, args.repeats, control)
         print(json.dumps({k: v for k, v in case.items() if not k.startswith("memory")}))
         print("  memory forward", case["memory_forward"], "gradient", case["memory_gradient"])
         cases.append(case)

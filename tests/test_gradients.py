@@ -408,3 +408,21 @@ def test_adjoint_solves_are_well_posed_for_zero_and_tiny_right_hand_sides():
             assert bool(ok)
             np.testing.assert_allclose(np.asarray(lam, float) / scale, exact,
                                        rtol=100 * rtol, atol=100 * rtol)
+
+
+def test_a_failed_forward_step_gives_its_own_error_or_nan_not_a_gradient():
+    """A step whose forward solve did not converge has no derivative: with `throw` the
+    gradient raises the forward's own message (here the step bound), not the
+    adjoint's (whose advice, more adjoint steps, was the wrong remedy); without, NaN."""
+    grid = jc.Grid((16, 16), 4 * A0)
+
+    def depth(w, throw):
+        scene = jc.Scene(grid, jc.Sphere(R), jc.Elastic(G, NU), jnp.linspace(0, 1, 3),
+                         jc.Force(w * jnp.array([0.5, 0.8, 1.0])))
+        sol = jc.solve(scene, solver=jc.Rounds(rtol=1e-12, max_steps=2), throw=throw)
+        return sol.approach[-1] * 1e6
+
+    assert np.isnan(float(jax.jit(jax.grad(lambda w: depth(w, False)))(W)))
+    with pytest.raises(Exception, match="maximum number of") as info:
+        jax.block_until_ready(jax.jit(jax.grad(lambda w: depth(w, True)))(W))
+    assert "adjoint" not in str(info.value)

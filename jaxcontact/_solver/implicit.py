@@ -141,7 +141,7 @@ def _residual(operator, config, frozen, x, theta):
     p, q, dz, dt = x
     compliance, poisson, friction, h, history, previous_slip, w_target, t_target = theta
     (contact, stick, slip_sign, sliding, kz, kt, fixed, slip_weight,
-     slip_direction) = frozen
+     slip_direction) = frozen[:9]
     area = operator.grid.cell_area
     n_contact = jnp.sum(contact)
     scale = area * jnp.sqrt(jnp.maximum(n_contact, 1).astype(p.dtype))
@@ -551,6 +551,17 @@ def _transposed_preconditioner(operator, config, frozen, theta, precondition):
     return apply
 
 
+def _unless_forward_failed(solution, frozen, throw: bool):
+    """A step's adjoint or tangent `solution` where its forward solve converged; where
+    it did not, that is no derivative: the forward's own `RESULTS` error (`throw`), or
+    NaN. (The adjoint solve of such a step often fails too, and its message, about
+    the adjoint's `max_steps`, would point at the wrong cause.)"""
+    converged, result = frozen[9], frozen[10]
+    if throw:
+        solution = result.error_if(solution, ~converged)
+    return jax.tree.map(lambda v: jnp.where(converged, v, jnp.nan), solution)
+
+
 def _reported(solution, ok, throw: bool):
     """A linear solve's `solution` (a pytree) as the caller sees it: raises
     `RESULTS.adjoint_not_converged` where not `ok` (`throw`), else NaN there."""
@@ -614,7 +625,8 @@ def _make_attach(config: _Spec, adjoint: ImplicitAdjoint, rtol: float, throw: bo
                 lam, ok = by_cg()
         else:
             lam, ok = by_gmres()
-        lam = _reported(lam, ok, throw)
+        lam = _reported(lam, ok | ~frozen[9], throw)
+        lam = _unless_forward_failed(lam, frozen, throw)
         theta_bar = residual_vjp(lam)[1]
         theta_bar = jax.tree.map(jnp.negative, theta_bar)
         if theta_extra is not None:
@@ -665,18 +677,18 @@ def _make_tangent(config: _Spec, adjoint: ImplicitAdjoint, rtol: float, throw: b
             v, ok = _right_preconditioned_gmres(
                 matvec, flat(precondition), b, jnp.zeros_like(b), rtol, adjoint.restart,
                 adjoint.max_steps, _gmres_method(adjoint))
-            return _reported(v, ok, throw)
+            return _reported(v, ok | ~frozen[9], throw)
 
         def normal_cg(matvec, b):  # frictionless: projected CG, as the adjoint
             v, ok = _normal_tangent(operator, config, frozen, theta, unravel(b), linear,
                                     rtol, adjoint.max_steps)
-            return _reported(ravel_pytree(v)[0], ok, throw)
+            return _reported(ravel_pytree(v)[0], ok | ~frozen[9], throw)
 
         def normal_cg_transposed(vecmat, b):
             zero = jax.tree.map(jnp.zeros_like, x)
             v, ok = _normal_adjoint(operator, config, frozen, theta, unravel(b), zero,
                                     rtol, adjoint.max_steps)
-            return _reported(ravel_pytree(v)[0], ok, throw)
+            return _reported(ravel_pytree(v)[0], ok | ~frozen[9], throw)
 
         # A transposable solve (the transposed system by the same method): reverse
         # mode through the forward rule works too (without the adjoint's warm starts).
@@ -684,6 +696,7 @@ def _make_tangent(config: _Spec, adjoint: ImplicitAdjoint, rtol: float, throw: b
                             else (gmres, gmres))
         x_dot = unravel(jax.lax.custom_linear_solve(flat(linear), b_flat, solve,
                                                     transpose))
+        x_dot = _unless_forward_failed(x_dot, frozen, throw)
         if config.nd > 0:
             kt = frozen[5]
             _, slip_dot = jax.jvp(
@@ -744,8 +757,9 @@ def differentiable_step(
         slip_direction = sg(increment / jnp.where(size > 0, size, 1)[None])
     # The gross-sliding equations only where the forward solved the step as such:
     # no stick cell below the friction limit (2-D slip fanning out) is not sliding.
+    # Last: whether the forward converged, and its RESULTS (`_unless_forward_failed`).
     frozen = (contact, res.stick & contact, slip_sign, res.gross_sliding, kz, kt, fixed,
-              slip_weight, slip_direction)
+              slip_weight, slip_direction, sg(res.converged), sg(res.result))
     theta = (jnp.asarray(compliance, dtype), jnp.asarray(poisson, dtype),
              jnp.asarray(problem.friction, dtype), problem.gap, problem.history,
              problem.previous_slip, jnp.asarray(problem.normal_target, dtype),
