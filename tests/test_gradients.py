@@ -280,10 +280,13 @@ TIMES_4 = jnp.linspace(0, 1, 4)
 
 
 def _grad_and_difference(f, x, h):
-    """`(jax.grad(f)(x), central difference of f at rtol FD_RTOL)`."""
+    """`(jax.grad(f)(x), central difference of f at rtol 1e-10)`, the difference
+    Richardson-extrapolated from steps `h` and `h / 2` (fourth order: near mu W the
+    response is so curved that a plain one at 1e-5 relative is 1.4e-5 off)."""
     grad = float(jax.grad(lambda v: f(v, None))(x))
-    fd = (float(f(x + h, FD_RTOL)) - float(f(x - h, FD_RTOL))) / (2 * h)
-    return grad, fd
+    # 1e-10: the joint iteration stalls near 1e-11 on the 0.997 mu W scene.
+    fm, fmh, fph, fp = (float(f(x + s * h, 1e-10)) for s in (-1, -0.5, 0.5, 1))
+    return grad, (8 * (fph - fmh) - (fp - fm)) / (6 * h)
 
 
 def test_elastic_load_ramp_gradient_with_steps_not_linked_to_the_output():
@@ -294,7 +297,7 @@ def test_elastic_load_ramp_gradient_with_steps_not_linked_to_the_output():
                          jc.Force(s * W * jnp.linspace(0.5, 1.0, 4)))
         return jc.solve(scene, rtol=rtol).approach[-1] * 1e6
 
-    grad, fd = _grad_and_difference(depth, 1.0, 1e-5)
+    grad, fd = _grad_and_difference(depth, 1.0, 1e-4)
     assert abs(grad - fd) <= 1e-5 * abs(fd), (grad, fd)
 
 
@@ -307,7 +310,7 @@ def test_full_coupling_total_slip_gradient():
                          friction=mu, coupling="full", slip="total")
         return jc.solve(scene, rtol=rtol).tangential_force[-1, 0] * 1e2
 
-    grad, fd = _grad_and_difference(fx, 0.3, 3e-6)
+    grad, fd = _grad_and_difference(fx, 0.3, 3e-5)
     assert abs(grad - fd) <= 1e-5 * abs(fd), (grad, fd)
 
 
@@ -328,8 +331,8 @@ def test_slipping_everywhere_below_the_friction_limit_is_not_gross_sliding():
     np.testing.assert_allclose(float(sol.tangential_force[-1, 0]), 0.045 * 0.997,
                                rtol=1e-7)
     grad, fd = _grad_and_difference(lambda mu, rtol: solve(mu, rtol).approach[-1] * 1e6,
-                                    0.3, 3e-6)
-    assert abs(grad - fd) <= 1e-4 * abs(fd), (grad, fd)
+                                    0.3, 3e-5)
+    assert abs(grad - fd) <= 1e-5 * abs(fd), (grad, fd)
 
 
 def test_vmap_grad_equals_the_loop_under_every_compile_mode():
