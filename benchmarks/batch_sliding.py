@@ -57,7 +57,8 @@ def main():
     parser.add_argument("--out", default=None)
     args = parser.parse_args()
     if args.out is None:
-        name = ("batch_sliding.json" if (args.axis, args.coupling) == ("friction", "none")
+        name = ("batch_sliding.json"
+                if (args.axis, args.coupling) == ("friction", "none")
                 else f"batch_sliding_{args.axis}_{args.coupling}.json")
         args.out = str(ROOT / "benchmarks/results" / name)
     rows = [run(args, *map(int, c.split(":"))) for c in args.configs]
@@ -116,7 +117,8 @@ def run(args, batch_size, n_sliding):
     t_loop, looped = best(loop)
     t_batch, (force, sliding, its) = best(batched)
     diff = max(abs(float(a[0]) - float(b)) for a, b in zip(looped, force))
-    row = dict(axis=args.axis, coupling=args.coupling, batch=batch_size, sliding_members=int(np.sum(np.asarray(sliding))),
+    row = dict(axis=args.axis, coupling=args.coupling, batch=batch_size,
+               sliding_members=int(np.sum(np.asarray(sliding))),
                max_steps=args.max_steps, loop_s=t_loop, vmap_s=t_batch,
                vmap_over_loop=t_batch / t_loop, force_difference_N=diff,
                iterations=np.asarray(its).tolist(), values=values.tolist())

@@ -66,11 +66,13 @@ def main():
     parser.add_argument("--solvers", nargs="+", default=["default", "joint"])
     parser.add_argument("--n", type=int, default=64)
     parser.add_argument("--steps", type=int, default=21)
-    parser.add_argument("--out", default=str(ROOT / "benchmarks/results/compile_time.json"))
+    parser.add_argument("--out",
+                        default=str(ROOT / "benchmarks/results/compile_time.json"))
     parser.add_argument("--root", default=str(ROOT),
                         help="the checkout whose jaxcontact is measured (e.g. an older "
                              "commit's `git archive`, for a before/after table)")
-    parser.add_argument("--label", default=None, help="a name for this tree in the JSON")
+    parser.add_argument("--label", default=None,
+                        help="a name for this tree in the JSON")
     args = parser.parse_args()
     names = args.presets or list(jc.presets.available())
     rows = []

@@ -87,7 +87,8 @@ def run(n, nt, optimiser):
         "evaluations": int(fit.evaluations), "loss": float(fit.loss),
         "converged": bool(fit.converged), "message": fit.message,
         "solves_converged": bool(fit.solves_converged),
-        "relative_errors": {"g_inf": err[0], "g": list(err[1:3]), "tau": list(err[3:5])},
+        "relative_errors": {"g_inf": err[0], "g": list(err[1:3]),
+                            "tau": list(err[3:5])},
         "max_relative_error": float(np.max(np.abs(err))),
     }
 
@@ -155,7 +156,8 @@ def main():
         return
     load_before = os.getloadavg()
     cases = []
-    for optimiser in (("lm", "lbfgs") if args.optimiser == "both" else (args.optimiser,)):
+    for optimiser in (("lm", "lbfgs") if args.optimiser == "both"
+                      else (args.optimiser,)):
         case = run(args.n, args.nt, optimiser)
         case["relative_errors"] = {k: np.asarray(v).tolist()
                                    for k, v in case["relative_errors"].items()}

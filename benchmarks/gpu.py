@@ -55,10 +55,19 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 sys.path.insert(0, str(HERE))
 
-import jaxcontact as jc  # noqa: E402
-from aspher_peer import (FORCE, K_HIGH, NU, RADIUS, SHEAR, SIZE, gap_field,  # noqa: E402
-                         rel_l2)  # noqa: E402
+from aspher_peer import (  # noqa: E402
+    FORCE,
+    K_HIGH,
+    NU,
+    RADIUS,
+    SHEAR,
+    SIZE,
+    gap_field,
+    rel_l2,
+)
 from gradients import make_loss  # noqa: E402
+
+import jaxcontact as jc  # noqa: E402
 
 
 RTOL = 1e-6
@@ -84,7 +93,7 @@ def machine() -> dict:
         "cpu_count": os.cpu_count(),
         "jax": jax.__version__,
         "python": platform.python_version(),
-        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(),
+        "date": datetime.datetime.now(datetime.UTC).isoformat(),
         "commit": _commit(),
     }
 

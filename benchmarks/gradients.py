@@ -12,16 +12,18 @@ mu_inf = 1.93 MPa, mu_inf / mu_0 = 4, tau = 0.01 s, nu = 0.3, domain 4 a):
 `--controls force,displacement`: the normal load ramped as a force (default) or as the
 Hertz approach of that force (displacement control), for every kind.
 
-For each: forward time (`jc.solve`, jitted, after compilation, best of repeats), gradient
-time (`jax.grad` of a scalar of the solution w.r.t. (mu_0, tau, poisson, W), jitted,
-after compilation), their ratio, and XLA's compiled memory analysis of both programs
-(temporary + argument + output bytes: the peak device buffer footprint XLA plans).
+For each: forward time (`jc.solve`, jitted, after compilation, best of repeats),
+gradient time (`jax.grad` of a scalar of the solution w.r.t. (mu_0, tau, poisson, W),
+jitted, after compilation), their ratio, and XLA's compiled memory analysis of both
+programs (temporary + argument + output bytes: the peak device buffer footprint XLA
+plans).
 
 Usage::
 
-    python benchmarks/gradients.py                 # 128^2 x 100 steps (the scene)
+    python benchmarks/gradients.py  # 128^2 x 100 steps (the scene)
     python benchmarks/gradients.py --n 64 --nt 40
-    python benchmarks/gradients.py --n 64 --nt 50 --kinds normal,slip,coupled_x,coupled \
+    python benchmarks/gradients.py --n 64 --nt 50 \
+        --kinds normal,slip,coupled_x,coupled \
         --controls force,displacement --out benchmarks/results/gradients_64.json
 
 Results go to `benchmarks/results/gradients.json`.
@@ -138,7 +140,8 @@ def main():
     parser.add_argument("--kinds", default="normal,slip")
     parser.add_argument("--controls", default="force",
                         help="normal control(s): force, displacement or both")
-    parser.add_argument("--out", default=str(Path(__file__).parent / "results" / "gradients.json"))
+    parser.add_argument("--out", default=str(Path(__file__).parent / "results"
+                                             / "gradients.json"))
     args = parser.parse_args()
     load_before = os.getloadavg()
     cases = []
@@ -146,13 +149,15 @@ def main():
                           for k in args.kinds.split(",")]:
         case = run_case(args.n, args.nt, kind, args.repeats, control)
         print(json.dumps({k: v for k, v in case.items() if not k.startswith("memory")}))
-        print("  memory forward", case["memory_forward"], "gradient", case["memory_gradient"])
+        print("  memory forward", case["memory_forward"], "gradient",
+              case["memory_gradient"])
         cases.append(case)
     result = {
         "machine": {"platform": platform.platform(), "processor": platform.processor(),
                     "cpu_count": os.cpu_count(), "jax": jax.__version__,
                     "device": str(jax.devices()[0]),
-                    "load_average_before": load_before, "load_average_after": os.getloadavg()},
+                    "load_average_before": load_before,
+                    "load_average_after": os.getloadavg()},
         "dtype": "float64", "rtol": 1e-8,
         "cases": cases,
     }

@@ -44,17 +44,20 @@ from pathlib import Path
 
 import jax
 
+
 # x64 is enabled for the whole script; float32 runs build float32 inputs.
 jax.config.update("jax_enable_x64", True)
 
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
+
 ROOT = Path(__file__).resolve().parent.parent
 # Benchmark the checkout this script lives in (the package need not be installed).
 sys.path.insert(0, str(ROOT))
 
 import jaxcontact as jc  # noqa: E402
+
 
 # ---- The problem ------------------------------------------------------------------
 
@@ -219,15 +222,16 @@ def build(n: int, dtype, notes: list[str]):
     hz = jc.Hertz(RADIUS, FORCE, SHEAR_MODULUS, POISSON)
     size = DOMAIN_OVER_A * float(hz.contact_radius)
     grid = jc.Grid((n, n), jnp.asarray(size, dtype))
-    material = jc.Elastic(jnp.asarray(SHEAR_MODULUS, dtype), jnp.asarray(POISSON, dtype))
+    material = jc.Elastic(jnp.asarray(SHEAR_MODULUS, dtype),
+                          jnp.asarray(POISSON, dtype))
     sphere = jc.Sphere(jnp.asarray(RADIUS, dtype))
     gap_dtype = sphere.gap(grid).dtype
     if gap_dtype != dtype:
         msg = (
-            f"jc.Sphere(radius={jnp.dtype(dtype).name}) with the default centre gives a "
-            f"{gap_dtype} gap on a {jnp.dtype(dtype).name} grid (the default centre "
-            f"(0.0, 0.0) is {sphere.centre.dtype} under x64), so the solve would run in "
-            f"{gap_dtype}; the benchmark passes centre=jnp.zeros(2, "
+            f"jc.Sphere(radius={jnp.dtype(dtype).name}) with the default centre gives "
+            f"a {gap_dtype} gap on a {jnp.dtype(dtype).name} grid (the default centre "
+            f"(0.0, 0.0) is {sphere.centre.dtype} under x64), so the solve would run "
+            f"in {gap_dtype}; the benchmark passes centre=jnp.zeros(2, "
             f"{jnp.dtype(dtype).name})."
         )
         if msg not in notes:
@@ -284,9 +288,10 @@ def run_case(n: int, dtype_name: str, args, notes: list[str]) -> dict:
     per_app = statistics.median(t / max(k, 1) for t, k in zip(times, apps))
     if int(sol.iterations) < MIN_ITERATIONS:
         notes.append(
-            f"{dtype_name} n={n}: {int(sol.iterations)} iterations (rtol {rtol_used:g}): "
-            "the solve is (nearly) the solver's initial guess, so its errors measure the "
-            "guess and its per-iteration ratios are not meaningful."
+            f"{dtype_name} n={n}: {int(sol.iterations)} iterations "
+            f"(rtol {rtol_used:g}): the solve is (nearly) the solver's initial guess, "
+            "so its errors measure the guess and its per-iteration ratios are not "
+            "meaningful."
         )
 
     compliance = material.instantaneous_compliance
@@ -419,7 +424,8 @@ def plot(rows, path: Path) -> None:
                         xytext=(5, 4), fontsize=8)
     ax.set_xlabel("solve time after compilation [s]")
     ax.set_ylabel("|peak pressure error| (relative to Hertz p0)")
-    ax.set_title(f"Hertz: rigid sphere on elastic half-space ({rows[0]['control']} control)")
+    ax.set_title("Hertz: rigid sphere on elastic half-space "
+                 f"({rows[0]['control']} control)")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend()
     fig.tight_layout()
@@ -435,7 +441,8 @@ def parse_args(argv=None):
     ap.add_argument("--sizes", type=int, nargs="+", default=list(DEFAULT_SIZES),
                     help="grid sizes n (n x n cells); default %(default)s")
     ap.add_argument("--quick", action="store_true",
-                    help=f"only n = {', '.join(map(str, QUICK_SIZES))} (overrides --sizes)")
+                    help=f"only n = {', '.join(map(str, QUICK_SIZES))} "
+                         "(overrides --sizes)")
     ap.add_argument("--dtypes", nargs="+", default=["float64"], choices=list(DTYPES),
                     help="floating-point types; default %(default)s")
     ap.add_argument("--control", choices=["force", "approach"], default="force",
@@ -443,15 +450,19 @@ def parse_args(argv=None):
                          "Hertz approach for W (no Hertz-shaped initial guess)")
     ap.add_argument("--rtol", type=float, default=None,
                     help="solver tolerance (default: jc.PolonskyKeer's own, 1e-8 in "
-                         "float64 and looser in float32; the JSON records the value used)")
+                         "float64 and looser in float32; the JSON records the value "
+                         "used)")
     ap.add_argument("--max-steps", type=int, default=2000,
                     help="solver iteration bound (default %(default)s)")
     ap.add_argument("--repeats", type=int, default=5,
-                    help="timed calls per case, the median is reported (default %(default)s)")
-    ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "hertz.json",
+                    help="timed calls per case, the median is reported "
+                         "(default %(default)s)")
+    ap.add_argument("--out", type=Path,
+                    default=ROOT / "benchmarks" / "results" / "hertz.json",
                     help="JSON output path (default %(default)s)")
     ap.add_argument("--plot", action="store_true",
-                    help="also write a PNG (time vs peak-pressure error) next to the JSON")
+                    help="also write a PNG (time vs peak-pressure error) next to the "
+                         "JSON")
     args = ap.parse_args(argv)
     if args.quick:
         args.sizes = list(QUICK_SIZES)
@@ -475,8 +486,9 @@ def main(argv=None) -> int:
         "hertz_peak_pressure_Pa": float(hz.peak_pressure),
         "hertz_approach_m": float(hz.approach),
     }
-    print(f"Hertz benchmark on {machine['processor']} ({machine['cpu_count_usable']} usable "
-          f"CPUs), jax {machine['jax']}, {machine['device']}")
+    print(f"Hertz benchmark on {machine['processor']} "
+          f"({machine['cpu_count_usable']} usable CPUs), jax {machine['jax']}, "
+          f"{machine['device']}")
     print(f"control: {args.control}; rtol: "
           f"{'solver default' if args.rtol is None else args.rtol}")
     print(f"a = {problem['hertz_contact_radius_m']:.6e} m, "
@@ -486,8 +498,8 @@ def main(argv=None) -> int:
     notes: list[str] = []
     if args.rtol is not None and args.rtol < 1e-6 and "float32" in args.dtypes:
         notes.append(
-            f"--rtol {args.rtol:g} is below float32 round-off: float32 solves may stop at "
-            f"--max-steps {args.max_steps} with converged=False (and take long)."
+            f"--rtol {args.rtol:g} is below float32 round-off: float32 solves may stop "
+            f"at --max-steps {args.max_steps} with converged=False (and take long)."
         )
         print("WARNING:", notes[-1])
     rows = []
@@ -502,8 +514,9 @@ def main(argv=None) -> int:
     exponents = growth_exponents(rows)
     result = {
         "benchmark": "hertz",
-        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-        "command": " ".join([Path(sys.argv[0]).name, *(sys.argv[1:] if argv is None else argv)]),
+        "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+        "command": " ".join([Path(sys.argv[0]).name,
+                             *(sys.argv[1:] if argv is None else argv)]),
         "problem": problem,
         "settings": {
             "sizes": args.sizes,

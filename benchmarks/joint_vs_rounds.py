@@ -1,4 +1,5 @@
-"""Joint (p, q) solver against the normal/tangential rounds (`jc.JointPCG`, `jc.Rounds`).
+"""Joint (p, q) solver against the normal/tangential rounds (`jc.JointPCG`,
+`jc.Rounds`).
 
 Both solve the same discrete coupled step (normal-tangential coupling "full" unless
 stated, float64, rtol 1e-8 on the same residual definitions) and are called the same
@@ -212,18 +213,24 @@ def case(name, n, width, coupling, tangential_force, normal_force, w_targets, t_
         )
     a, b = out["rounds"].pop("_res"), out["joint"].pop("_res")
     p_scale = np.max(np.asarray(a.pressure), axis=(1, 2))
-    dp = np.max(np.abs(np.asarray(a.pressure) - np.asarray(b.pressure)), axis=(1, 2)) / p_scale
-    dq = np.max(np.abs(np.asarray(a.shear) - np.asarray(b.shear)), axis=(1, 2, 3)) / (mu * p_scale)
+    dp = (np.max(np.abs(np.asarray(a.pressure) - np.asarray(b.pressure)), axis=(1, 2))
+          / p_scale)
+    dq = (np.max(np.abs(np.asarray(a.shear) - np.asarray(b.shear)), axis=(1, 2, 3))
+          / (mu * p_scale))
     dstick = np.sum(np.asarray(a.stick) != np.asarray(b.stick), axis=(1, 2))
     row = dict(case=name, n=n, steps=int(w_targets.shape[0]), coupling=coupling, nu=nu,
                mu=mu, dp_max=float(dp.max()), dq_max=float(dq.max()),
                dstick_max=int(dstick.max()), **{k: out[k] for k in out})
     r, j = out["rounds"], out["joint"]
-    print(f"{name:38s} n={n:4d} steps={row['steps']:2d} | rounds it={sum(r['iterations']):6d} "
-          f"apps={r['applications']:8.1f} t={r['seconds']:7.3f}s conv={r['converged']} | "
+    print(f"{name:38s} n={n:4d} steps={row['steps']:2d} | rounds "
+          f"it={sum(r['iterations']):6d} "
+          f"apps={r['applications']:8.1f} t={r['seconds']:7.3f}s "
+          f"conv={r['converged']} | "
           f"joint it={sum(j['iterations']):5d} apps={j['applications']:7.1f} "
-          f"t={j['seconds']:6.3f}s conv={j['converged']} | speed-up {r['seconds'] / j['seconds']:5.1f}x"
-          f" | dp={row['dp_max']:.1e} dq={row['dq_max']:.1e} dstick={row['dstick_max']}",
+          f"t={j['seconds']:6.3f}s conv={j['converged']} | speed-up "
+          f"{r['seconds'] / j['seconds']:5.1f}x"
+          f" | dp={row['dp_max']:.1e} dq={row['dq_max']:.1e} "
+          f"dstick={row['dstick_max']}",
           flush=True)
     return row
 
@@ -260,13 +267,15 @@ def speed(sizes=(128, 256), increments=90, repeats=5, methods=("joint", "rounds"
         a = float(jc.Hertz(R, W, G, NU).contact_radius)
         grid = jc.Grid((n, n), width * a)
         op_n, op_f = jc.HalfSpace(grid), jc.HalfSpace(grid, "full")
-        scene = jc.Scene(grid, jc.Sphere(R), mat, times=jnp.zeros(1), normal=jc.Force(W),
-                         x=jc.Force(0.5 * MU * W), friction=MU, coupling="full")
+        scene = jc.Scene(grid, jc.Sphere(R), mat, times=jnp.zeros(1),
+                         normal=jc.Force(W), x=jc.Force(0.5 * MU * W), friction=MU,
+                         coupling="full")
         fns = {
             "normal": lambda: jc.solve_normal(grid, jc.Sphere(R), mat, force=W,
                                               operator=op_n).pressure,
             "joint": lambda: jc.solve(scene, operator=op_f, solver=SOLVE_WITH["joint"]),
-            "rounds": lambda: jc.solve(scene, operator=op_f, solver=SOLVE_WITH["rounds"]),
+            "rounds": lambda: jc.solve(scene, operator=op_f,
+                                       solver=SOLVE_WITH["rounds"]),
         }
         fns = {k: f for k, f in fns.items() if k == "normal" or k in methods}
         compile_s, sols = {}, {}
@@ -288,7 +297,8 @@ def speed(sizes=(128, 256), increments=90, repeats=5, methods=("joint", "rounds"
             converged={k: bool(sols[k].converged[0]) for k in methods},
         )
         if "rounds" in methods and "joint" in methods:
-            pj, pr = np.asarray(sols["joint"].pressure), np.asarray(sols["rounds"].pressure)
+            pj, pr = (np.asarray(sols["joint"].pressure),
+                      np.asarray(sols["rounds"].pressure))
             row["dp_rel"] = float(np.abs(pj - pr).max() / pr.max())
         print(f"CM n={n} width {width}a: median coupled/normal "
               + ", ".join(f"{k} {ratio[k]:.1f}x" for k in methods)
@@ -308,12 +318,14 @@ def speed(sizes=(128, 256), increments=90, repeats=5, methods=("joint", "rounds"
     rows = {}
     sols = {}
     for method in methods:
-        first, sols[method] = _timed_once(lambda: jc.solve(scene, operator=op_f, solver=SOLVE_WITH[method]))
+        first, sols[method] = _timed_once(
+            lambda: jc.solve(scene, operator=op_f, solver=SOLVE_WITH[method]))
         rows[method] = dict(first_call_s=first, seconds=[])
     for _ in range(max(1, repeats // 2)):
         for method in methods:
             rows[method]["seconds"].append(
-                _timed_once(lambda: jc.solve(scene, operator=op_f, solver=SOLVE_WITH[method]))[0])
+                _timed_once(lambda: jc.solve(scene, operator=op_f,
+                                             solver=SOLVE_WITH[method]))[0])
     for method, sol in sols.items():
         ratio = np.asarray(sol.stick_ratio)
         rows[method].update(
@@ -325,10 +337,12 @@ def speed(sizes=(128, 256), increments=90, repeats=5, methods=("joint", "rounds"
     out["spence"] = dict(n=n, width_over_a=width, increments=increments, mu=mu,
                          methods=rows)
     if "rounds" in methods and "joint" in methods:
-        pj, pr = np.asarray(sols["joint"].pressure), np.asarray(sols["rounds"].pressure)
-        out["spence"].update(dp_rel=float(np.abs(pj - pr).max() / pr.max()),
-                             dstick_final=int(np.sum(np.asarray(sols["joint"].stick[-1])
-                                                     != np.asarray(sols["rounds"].stick[-1]))))
+        pj, pr = (np.asarray(sols["joint"].pressure),
+                  np.asarray(sols["rounds"].pressure))
+        out["spence"].update(
+            dp_rel=float(np.abs(pj - pr).max() / pr.max()),
+            dstick_final=int(np.sum(np.asarray(sols["joint"].stick[-1])
+                                    != np.asarray(sols["rounds"].stick[-1]))))
     print("Spence:", json.dumps(out["spence"]), flush=True)
     return out
 
@@ -339,16 +353,19 @@ def main():
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--skip-spence", action="store_true")
     parser.add_argument("--speed", action="store_true",
-                        help="only the jc.solve timings (CM/normal at 128, 256; Spence 90)")
+                        help="only the jc.solve timings (CM/normal at 128, 256; "
+                             "Spence 90)")
     parser.add_argument("--sizes", type=int, nargs="+", default=[128, 256])
     parser.add_argument("--widths", type=float, nargs="+", default=None,
                         help="--speed: grid side / a per size (default 4)")
     parser.add_argument("--methods", nargs="+", default=["joint", "rounds"],
                         help="--speed: coupled methods to time (default both)")
     parser.add_argument("--tag", default="",
-                        help="--speed: suffix of the results file (coupled_speed<tag>.json)")
+                        help="--speed: suffix of the results file "
+                             "(coupled_speed<tag>.json)")
     parser.add_argument("--increments", type=int, default=90)
-    parser.add_argument("--out", default=str(ROOT / "benchmarks/results/joint_vs_rounds.json"))
+    parser.add_argument("--out",
+                        default=str(ROOT / "benchmarks/results/joint_vs_rounds.json"))
     args = parser.parse_args()
     if args.speed:
         results = dict(
@@ -376,7 +393,8 @@ def main():
         case("(c) normal load ramp, 10 steps", n, 4.0, "full", (True, True), True,
              W * ramp, jnp.zeros((10, 2)), repeats=rep),
         case("(d) delta_x ramp to 1.5 x sliding", n, 4.0, "full", (False, True), True,
-             jnp.full(10, W), jnp.stack([1.5 * slide * ramp, 0 * ramp], -1), repeats=rep),
+             jnp.full(10, W), jnp.stack([1.5 * slide * ramp, 0 * ramp], -1),
+             repeats=rep),
         case("(e) F_x ramp to 1.2 muW (sliding)", n, 4.0, "full", (True, True), True,
              jnp.full(4, W), [[0.5 * MU * W, 0], [0.9 * MU * W, 0], [MU * W, 0],
                               [1.2 * MU * W, 0]], repeats=rep),

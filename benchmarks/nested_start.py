@@ -16,17 +16,22 @@ import sys
 import time
 from pathlib import Path
 
+
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import jax  # noqa: E402
 
+
 jax.config.update("jax_enable_x64", True)
+import aspher_peer as ap  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 
 import jaxcontact as jc  # noqa: E402
-import aspher_peer as ap  # noqa: E402
-from jaxcontact._solve_normal import _solve  # noqa: E402
-from jaxcontact._solve_normal import _block_mean, _repeat  # noqa: E402
+from jaxcontact._solve_normal import (  # noqa: E402
+    _block_mean,
+    _repeat,
+    _solve,
+)
 from jaxcontact._solver.normal import hertzian_guess  # noqa: E402
 
 

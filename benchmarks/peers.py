@@ -32,11 +32,12 @@ A request is one JSON object per line::
 
 and the answer one line: the solve times [s] (each solve from the peer's own initial
 state, or with "warm": true from the Hertz pressure scaled to W, the kind of guess
-jaxcontact's load-control solve starts from; set-up such as the kernel spectra is built once per (code, n, size) and not
-timed), the peak pressure [stress], the number of cells in contact (pressure > 0),
-the rigid-body approach [length] (ContactMechanics only: Tamaas is periodic and its
-mean displacement is a gauge), the iteration count where the peer reports it, and the
-process's peak resident memory (`ru_maxrss`). `{"cmd": "quit"}` ends the server.
+jaxcontact's load-control solve starts from; set-up such as the kernel spectra is built
+once per (code, n, size) and not timed), the peak pressure [stress], the number of cells
+in contact (pressure > 0), the rigid-body approach [length] (ContactMechanics only:
+Tamaas is periodic and its mean displacement is a gauge), the iteration count where the
+peer reports it, and the process's peak resident memory (`ru_maxrss`). `{"cmd": "quit"}`
+ends the server.
 
 ASPHER (`pip install aspher`, built from its sdist; it needs Eigen) takes a different
 request, since it is posed in its own units (unit square domain, E* = 1, mean pressure

@@ -1041,17 +1041,18 @@ def main(argv=None) -> int:
         "library": hertz.library_info(),
         "memory_method": (
             "peak resident set size (resource.getrusage(RUSAGE_SELF).ru_maxrss, KiB on "
-            "Linux, reported in MiB) of the subprocess that ran the case, which includes "
-            "the Python + JAX + jaxcontact import baseline given as baseline_rss_mib; "
-            "for a worker running several Nt the figure is the peak up to that row. "
+            "Linux, reported in MiB) of the subprocess that ran the case, which "
+            "includes the Python + JAX + jaxcontact import baseline given as "
+            "baseline_rss_mib; for a worker running several Nt the figure is the peak "
+            "up to that row. "
             "Peers: ru_maxrss of the peer server process (NumPy + the peer)."
         ),
         "timing_method": (
-            "compile_s = first call minus the best later call (same shapes, load changed "
-            "by ~1e-9 so that nothing is reused but the compiled program); solve_s = best "
-            "of the later calls, wall clock, block_until_ready. conv_naive_s = one padded "
-            "rfft2/irfft2 pair of size 2n x 2n timed in a jitted fori_loop in the same "
-            "process (the floor of one CG iteration)."
+            "compile_s = first call minus the best later call (same shapes, load "
+            "changed by ~1e-9 so that nothing is reused but the compiled program); "
+            "solve_s = best of the later calls, wall clock, block_until_ready. "
+            "conv_naive_s = one padded rfft2/irfft2 pair of size 2n x 2n timed in a "
+            "jitted fori_loop in the same process (the floor of one CG iteration)."
         ),
     }
     timeout = cfg["timeout_s"]
@@ -1185,8 +1186,8 @@ def print_summary(out, log=print):
     for r in out.get("hertz", []):
         if "errors" in r:
             log(
-                f"hertz {r['dtype']} n={r['n']:5d}: solve {r['solve_s']:.4f} s, compile "
-                f"{r['compile_s']:.1f} s, {r['iterations']} it, it/FFT floor "
+                f"hertz {r['dtype']} n={r['n']:5d}: solve {r['solve_s']:.4f} s, "
+                f"compile {r['compile_s']:.1f} s, {r['iterations']} it, it/FFT floor "
                 f"{r['iteration_over_conv_naive'] or float('nan'):.2f}, p0 err "
                 f"{r['errors']['peak_pressure_rel']:+.1e}, a err "
                 f"{r['errors']['contact_radius_cells']:+.2f} cells, peak RSS "
@@ -1195,25 +1196,26 @@ def print_summary(out, log=print):
     for r in out.get("cattaneo", []):
         if "errors" in r:
             log(
-                f"CM {r['dtype']} n={r['n']:4d} Nt={r['nt']:3d}: solve {r['solve_s']:.3f} s, "
-                f"compile {r['compile_s']:.1f} s, {r['iterations']} it, stick radius err "
+                f"CM {r['dtype']} n={r['n']:4d} Nt={r['nt']:3d}: solve "
+                f"{r['solve_s']:.3f} s, compile {r['compile_s']:.1f} s, "
+                f"{r['iterations']} it, stick radius err "
                 f"{r['errors']['stick_radius_cells']:+.2f} cells, compliance err "
                 f"{r['errors']['compliance_rel']:+.1e}"
             )
     for r in out.get("leeradok", []):
         if "errors" in r:
             log(
-                f"LR {r['dtype']} n={r['n']:4d} Nt={r['nt']:3d} {r['scheme']:8s}: solve "
-                f"{r['solve_s']:.3f} s, compile {r['compile_s']:.1f} s, "
+                f"LR {r['dtype']} n={r['n']:4d} Nt={r['nt']:3d} {r['scheme']:8s}: "
+                f"solve {r['solve_s']:.3f} s, compile {r['compile_s']:.1f} s, "
                 f"{r['iterations_per_step']:.1f} it/step, a err "
-                f"{r['errors']['contact_radius_cells_max']:.2f} cells, sqrt(R delta) err "
-                f"{r['errors']['contact_radius_from_approach_rel_max']:.1e}"
+                f"{r['errors']['contact_radius_cells_max']:.2f} cells, sqrt(R delta) "
+                f"err {r['errors']['contact_radius_from_approach_rel_max']:.1e}"
             )
     for c in out.get("summary", {}).get("peer_time_ratios", []):
         log(
             f"peer {c['peer']} n={c['n']} (jaxcontact threads {c['threads']}, periodic "
-            f"{c['periodic']}, matched {c['matched']}): ours {c['ours_best_s']:.4f} s at "
-            f"rtol {c['ours_rtol']:g}, peer {c['peer_best_s']:.4f} s at tol "
+            f"{c['periodic']}, matched {c['matched']}): ours {c['ours_best_s']:.4f} s "
+            f"at rtol {c['ours_rtol']:g}, peer {c['peer_best_s']:.4f} s at tol "
             f"{c['peer_tol']:g}: peer/ours {c['ratio_best']:.1f}x (best), "
             f"{c['ratio_median']:.1f}x (median)"
         )

@@ -31,9 +31,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+
 jax.config.update("jax_enable_x64", True)
 
 import jaxcontact as jc  # noqa: E402
+
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "benchmarks/results/stress_matrix.json"
@@ -105,8 +107,8 @@ def cells(groups):
                     x=jc.Displacement(jnp.linspace(0, 25e-6 / length, 11)),
                     friction=0.3, coupling="full")))
     if "friction" in groups:
-        # Partial slip through gross sliding: a tangential load ramp to 0.5 W (above mu W
-        # for mu < 0.5) or a displacement ramp to 20 um, for each coupling.
+        # Partial slip through gross sliding: a tangential load ramp to 0.5 W (above
+        # mu W for mu < 0.5) or a displacement ramp to 20 um, for each coupling.
         for coupling in ("none", "x", "full"):
             for control in ("load", "displacement"):
                 for mu in (0.0, 0.1, 0.3, 1.0):
@@ -199,7 +201,8 @@ def table(data):
         ce = f"{r['coulomb_excess']:.1e}" if "coulomb_excess" in r else "-"
         lines.append(
             f"| {r['group']} | {r['cell']} | {'yes' if r['converged'] else 'NO'} | "
-            f"{r['max_iterations']} / {r['iterations']} | {r['fallbacks']} | {lb} | {ce} | "
+            f"{r['max_iterations']} / {r['iterations']} | {r['fallbacks']} | {lb} | "
+            f"{ce} | "
             f"{r['solve_s']:.3f} | {r['slow_vs_group']:.1f} | {r['flag'] or '-'} |")
     return "\n".join(lines)
 

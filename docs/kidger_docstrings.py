@@ -8,7 +8,8 @@ import re
 from myst_parser.parsers.sphinx_ import MystParser
 
 
-_ADMONITION = re.compile(r'^(?P<indent> *)(?P<mark>!!!|\?\?\?) +(?P<kind>\w+)(?: +"(?P<title>[^"]*)")? *$')
+_ADMONITION = re.compile(r'^(?P<indent> *)(?P<mark>!!!|\?\?\?) +(?P<kind>\w+)'
+                         r'(?: +"(?P<title>[^"]*)")? *$')
 _KINDS = {"note": "note", "warning": "warning", "tip": "tip", "info": "note",
           "example": "note", "cite": "note", "danger": "danger"}
 

@@ -4,25 +4,25 @@ A rigid indenter against a linear (visco)elastic half-space, by influence
 coefficients, DC-FFT and conjugate-gradient contact solvers.
 """
 
-from ._afm import AFMCurve as AFMCurve, read_afm as read_afm
-from ._analytic import Hertz as Hertz, LeeRadok as LeeRadok
+from . import presets as presets
+from ._afm import AFMCurve as AFMCurve
+from ._afm import read_afm as read_afm
+from ._analytic import Hertz as Hertz
+from ._analytic import LeeRadok as LeeRadok
 from ._cache import enable_compilation_cache as enable_compilation_cache
-from ._fit import (
-    fit_prony as fit_prony,
-    fit_prony_batch as fit_prony_batch,
-    IndentationData as IndentationData,
-    PronyFit as PronyFit,
-)
+from ._dataset import load as load
+from ._fit import IndentationData as IndentationData
+from ._fit import PronyFit as PronyFit
+from ._fit import fit_prony as fit_prony
+from ._fit import fit_prony_batch as fit_prony_batch
 from ._force_map import fit_force_map as fit_force_map
 from ._grid import Grid as Grid
-from ._dataset import load as load
-from ._indenter import (
-    AbstractIndenter as AbstractIndenter,
-    Sphere as Sphere,
-    Surface as Surface,
-)
+from ._indenter import AbstractIndenter as AbstractIndenter
+from ._indenter import Sphere as Sphere
+from ._indenter import Surface as Surface
 from ._influence import influence_coefficients as influence_coefficients
-from ._loading import Displacement as Displacement, Force as Force
+from ._loading import Displacement as Displacement
+from ._loading import Force as Force
 from ._material.base import AbstractMaterial as AbstractMaterial
 from ._material.base import CreepSeries as CreepSeries
 from ._material.elastic import Elastic as Elastic
@@ -30,27 +30,26 @@ from ._material.maxwell import Maxwell as Maxwell
 from ._material.prony import Prony as Prony
 from ._material.zener import Zener as Zener
 from ._operator import HalfSpace as HalfSpace
-from ._scene import Scene as Scene
 from ._results import RESULTS as RESULTS
+from ._scene import Scene as Scene
 from ._solution import Solution as Solution
 from ._solve import solve as solve
-from ._sweep import sweep as sweep
-from ._solve_normal import NormalSolution as NormalSolution, solve_normal as solve_normal
-from ._subsurface import Stress as Stress, subsurface_stress as subsurface_stress
-from ._surface import surface_displacement as surface_displacement
-from ._solver.base import (
-    AbstractStepSolver as AbstractStepSolver,
-    StepGuess as StepGuess,
-    StepProblem as StepProblem,
-    StepResult as StepResult,
-)
+from ._solve_normal import NormalSolution as NormalSolution
+from ._solve_normal import solve_normal as solve_normal
+from ._solver.base import AbstractStepSolver as AbstractStepSolver
+from ._solver.base import StepGuess as StepGuess
+from ._solver.base import StepProblem as StepProblem
+from ._solver.base import StepResult as StepResult
 from ._solver.fallback import Fallback as Fallback
 from ._solver.implicit import ImplicitAdjoint as ImplicitAdjoint
 from ._solver.joint import JointPCG as JointPCG
 from ._solver.load_search import LoadByDisplacement as LoadByDisplacement
 from ._solver.normal import PolonskyKeer as PolonskyKeer
 from ._solver.rounds import Rounds as Rounds
-from . import presets as presets
+from ._subsurface import Stress as Stress
+from ._subsurface import subsurface_stress as subsurface_stress
+from ._surface import surface_displacement as surface_displacement
+from ._sweep import sweep as sweep
 from ._validate import EdgeContactWarning as EdgeContactWarning
 from ._validate import TimeStepWarning as TimeStepWarning
 
@@ -72,7 +71,8 @@ __all__ = [
     "AbstractStepSolver", "PolonskyKeer", "Rounds", "JointPCG", "Fallback",
     "LoadByDisplacement", "ImplicitAdjoint", "StepProblem", "StepGuess", "StepResult",
     # Analytic references, fitting, AFM files
-    "Hertz", "LeeRadok", "fit_prony", "fit_prony_batch", "IndentationData", "PronyFit", "read_afm",
+    "Hertz", "LeeRadok", "fit_prony", "fit_prony_batch", "IndentationData", "PronyFit",
+    "read_afm",
     "fit_force_map",
     "AFMCurve",
     # Presets and warnings

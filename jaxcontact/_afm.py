@@ -196,7 +196,8 @@ class AFMCurve:
         from ._material.elastic import Elastic
         from ._scene import Scene
 
-        if not (isinstance(radius, (int, float)) and np.isfinite(radius) and radius > 0):
+        if not (isinstance(radius, (int, float)) and np.isfinite(radius)
+                and radius > 0):
             raise ValueError(f"radius must be a finite number > 0 [m], got {radius!r}")
         a_max = float(np.sqrt(radius * max(float(self.depth.max()), 0.0)))
         if not a_max > 0:
@@ -212,7 +213,7 @@ class AFMCurve:
                      jnp.linspace(0.0, 1.0, 3), normal)
 
 
-# ---------------------------------------------------------------------------------------
+# --------------------------------------------------------------------------------------
 # Contact point.
 
 
@@ -324,7 +325,7 @@ def _refine_contact(time, f_rel, height, code, ic, k, mode, *,
         "model")
 
 
-# ---------------------------------------------------------------------------------------
+# --------------------------------------------------------------------------------------
 # Segments.
 
 
@@ -351,7 +352,7 @@ def classify_segments(height, segment):
     return names
 
 
-# ---------------------------------------------------------------------------------------
+# --------------------------------------------------------------------------------------
 # Reader.
 
 
@@ -430,7 +431,7 @@ def read_afm(source, *, index=0, contact_index=None, baseline="constant",
     metadata = dict(curve.metadata)
     k = metadata.get("spring constant")
 
-    # -- Columns ------------------------------------------------------------------------
+    # -- Columns -----------------------------------------------------------------------
     _, time = _column(curve, ("time",))
     _, height = _column(curve, ("height (measured)", "height (piezo)"))
     _, force = _column(curve, ("force",))
@@ -504,7 +505,7 @@ def read_afm(source, *, index=0, contact_index=None, baseline="constant",
     f_base = base(np.arange(time.size))
     # the depth from the piecewise fit's contact (for the mode of a hold)
     depth_pl = (height[ic] - height) - (force - f_base) / k
-    # -- Mode ---------------------------------------------------------------------------
+    # -- Mode --------------------------------------------------------------------------
     if mode is None:
         imaging = str(metadata.get("imaging mode", ""))
         if "creep" in imaging:
@@ -535,7 +536,7 @@ def read_afm(source, *, index=0, contact_index=None, baseline="constant",
     f_rel = force - f_base - offset
     depth = (height[ic] - height) - f_rel / k
 
-    # -- Kept samples -------------------------------------------------------------------
+    # -- Kept samples ------------------------------------------------------------------
     keep_code = np.isin(code, [SEGMENT_NAMES.index(s) for s in segments])
     keep = keep_code & (np.arange(time.size) >= ic) & (code >= 0)
     ret = np.flatnonzero(keep & (code == 2))

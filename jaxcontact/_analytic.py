@@ -1,4 +1,5 @@
-"""Analytic reference solutions (library objects, used by tests, benchmarks and examples)."""
+"""Analytic reference solutions (library objects, used by tests, benchmarks and
+examples)."""
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -81,7 +82,8 @@ class LeeRadok:
         self.radius = float(radius)
         self.poisson = float(poisson)
         self.creep = lambda t: np.asarray(material.creep(jnp.asarray(t)), dtype=float)
-        self.relaxation = lambda t: np.asarray(material.relaxation(jnp.asarray(t)), dtype=float)
+        self.relaxation = lambda t: np.asarray(material.relaxation(jnp.asarray(t)),
+                                               dtype=float)
         self.load = load
         self.samples = samples
 
@@ -95,7 +97,8 @@ class LeeRadok:
         lag = s[:, None] - mid[None, :]  # (ns, ns-1)
         kernel = np.where(lag > 0, self.creep(np.clip(lag, 0.0, None)), 0.0)
         integral = self.creep(s) * w[0] + kernel @ dw
-        a = (3 * self.radius * (1 - self.poisson) / 8 * np.clip(integral, 0.0, None)) ** (1 / 3)
+        a = (3 * self.radius * (1 - self.poisson) / 8
+             * np.clip(integral, 0.0, None)) ** (1 / 3)
         return s, a
 
     def contact_radius(self, t):

@@ -1,4 +1,5 @@
-"""`jc.enable_compilation_cache`: JAX's persistent compilation cache in a per-user folder.
+"""`jc.enable_compilation_cache`: JAX's persistent compilation cache in a per-user
+folder.
 
 A coupled scene's program takes seconds to compile and a fraction of that to run; with
 the cache a second process that solves a scene of the same shapes, dtypes and options
@@ -52,10 +53,12 @@ def enable_compilation_cache(directory=None, *, min_compile_seconds: float = 1.0
     import jax
 
     if min_compile_seconds < 0:
-        raise ValueError(f"min_compile_seconds must be >= 0, got {min_compile_seconds!r}")
+        raise ValueError("min_compile_seconds must be >= 0, got "
+                         f"{min_compile_seconds!r}")
     if isinstance(max_bytes, bool) or not isinstance(max_bytes, int) or max_bytes <= 0:
         raise ValueError(f"max_bytes must be a positive integer, got {max_bytes!r}")
-    path = Path(directory).expanduser() if directory is not None else default_cache_dir()
+    path = (Path(directory).expanduser() if directory is not None
+            else default_cache_dir())
     path.mkdir(parents=True, exist_ok=True)
     jax.config.update("jax_compilation_cache_dir", str(path))
     jax.config.update("jax_persistent_cache_min_compile_time_secs",

@@ -52,7 +52,8 @@ from ._cli_output import InputError, prepare_out
 
 
 RADIUS_NOTE = ("the probe radius is an input (not in the file): absolute moduli scale "
-               "as radius^(-1/2); relaxation times and modulus ratios do not depend on it")
+               "as radius^(-1/2); relaxation times and modulus ratios do not depend "
+               "on it")
 
 
 # Plausible probe radius / maximum indentation depth of a sphere: below 1e-2 the Hertz
@@ -150,8 +151,9 @@ def add_parser(sub):
                         "the closed-form viscoelastic model (default), or the "
                         "piecewise fit alone (jc.read_afm's contact=)")
     p.add_argument("--check-grid", action=argparse.BooleanOptionalAction, default=True,
-                   help="also solve the fitted model on a grid twice as fine and report "
-                        "the difference (the model's discretisation error; default on)")
+                   help="also solve the fitted model on a grid twice as fine and "
+                        "report the difference (the model's discretisation error; "
+                        "default on)")
     p.add_argument("--tau-range", default="auto", metavar="LO,HI|auto|none",
                    help="bounds on the relaxation times [s]; 'auto' (default): 1e-3 x "
                         "the binned data's shortest time step to its duration (a time "
@@ -167,7 +169,8 @@ def add_parser(sub):
 
 def _check(args):
     if not math.isfinite(args.radius):
-        raise _BadInput(f"--radius must be a finite number > 0 [m], got {args.radius!r}")
+        raise _BadInput("--radius must be a finite number > 0 [m], got "
+                        f"{args.radius!r}")
     if args.radius <= 0:
         raise _BadInput(f"--radius must be a finite number > 0 [m]: the probe radius "
                         f"must be positive, got {args.radius!r}")
@@ -202,8 +205,8 @@ def _check(args):
     except ValueError:
         samples = []
     if len(samples) != 3 or min(samples) < 1:
-        raise _BadInput(f"--samples must be three integers >= 1 (approach,hold,retract), "
-                        f"got {args.samples!r}")
+        raise _BadInput(f"--samples must be three integers >= 1 "
+                        f"(approach,hold,retract), got {args.samples!r}")
     segments = tuple(s.strip() for s in args.segments.split(",") if s.strip())
     if "approach" not in segments or any(
             s not in ("approach", "hold", "retract") for s in segments):
@@ -345,9 +348,9 @@ def _fit_one(path, args, samples, segments):
         "ratios_g_over_g0": [float(v) / g0 for v in np.asarray(m.g)],
         "residual_rms": rms,
         "discretisation_rms": disc,
-        "discretisation_note": ("RMS change of the fitted model's curve on a grid twice "
-                                "as fine: a bias of the model, to compare with the "
-                                "residual and the noise"),
+        "discretisation_note": ("RMS change of the fitted model's curve on a grid "
+                                "twice as fine: a bias of the model, to compare with "
+                                "the residual and the noise"),
         "noise_raw": curve.noise(fit.kind),
         "residual_over_noise": chi,
         "residual_over_noise_hold": chi_hold,
@@ -515,8 +518,8 @@ def _print(r, json_path):
     print(f"  instantaneous: G_0 = {r['instantaneous_modulus_Pa']:.4g} Pa   "
           f"E_0 = {e['E_0_Pa']:.4g} Pa")
     hold = r["residual_over_noise_hold"]
-    print(f"  residual RMS {r['residual_rms']:.3g} = {r['residual_over_noise']:.2f} x the "
-          f"noise of the binned data" + (f" (hold: {hold:.2f})" if hold is not None
+    print(f"  residual RMS {r['residual_rms']:.3g} = {r['residual_over_noise']:.2f} x "
+          f"the noise of the binned data" + (f" (hold: {hold:.2f})" if hold is not None
                                          else "")
           + f" (raw noise {r['noise_raw']:.3g}); converged: {r['converged']}")
     if r["hold_residual_over_noise_raw"] is not None:

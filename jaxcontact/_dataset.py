@@ -108,7 +108,7 @@ _MATERIAL_UNITS = {
 }
 
 
-# ---- Helpers ---------------------------------------------------------------------------
+# ---- Helpers -------------------------------------------------------------------------
 
 
 def _xarray():
@@ -309,7 +309,8 @@ def _result_attrs() -> dict:
 
     items = RESULTS._name_to_item  # name -> item; item._value the integer code
     return {
-        "flag_values": np.array([int(item._value) for item in items.values()], np.int32),
+        "flag_values": np.array([int(item._value) for item in items.values()],
+                                np.int32),
         "flag_meanings": " ".join(items),
     }
 
@@ -323,7 +324,7 @@ def _encoding(ds) -> dict:
     }
 
 
-# ---- Builders ---------------------------------------------------------------------------
+# ---- Builders ------------------------------------------------------------------------
 
 
 def solution_dataset(
@@ -389,7 +390,8 @@ def solution_dataset(
                     f"{values.shape}"
                 )
             kind = _MATERIAL_UNITS.get(key.split("__")[-1], "1")
-            coords[key] = (("batch",) + tuple(f"{key}_{i}" for i in range(values.ndim - 1)),
+            coords[key] = (("batch",)
+                           + tuple(f"{key}_{i}" for i in range(values.ndim - 1)),
                            values, _attrs(kind, f"swept {key}", table))
     elif batch:
         raise ValueError("batch= labels a jc.sweep result (a leading batch axis)")
@@ -455,7 +457,8 @@ def normal_dataset(
     return xr.Dataset(data_vars, _grid_coords(grid, table), out_attrs)
 
 
-def stress_dataset(stress, grid, *, units=None, attrs: dict | None = None) -> xr.Dataset:
+def stress_dataset(stress, grid, *, units=None,
+                   attrs: dict | None = None) -> xr.Dataset:
     """The Dataset of a subsurface `Stress`: see `Stress.to_xarray`."""
     xr = _xarray()
     from ._grid import Grid
@@ -469,7 +472,8 @@ def stress_dataset(stress, grid, *, units=None, attrs: dict | None = None) -> xr
         name: (
             dims,
             _np(getattr(stress, name)),
-            _attrs("stress", long_name, table, sign="tension positive, z into the body"),
+            _attrs("stress", long_name, table,
+                   sign="tension positive, z into the body"),
         )
         for name, long_name in _STRESS_NAMES.items()
     }
@@ -570,7 +574,7 @@ def fit_dataset(fit, *, units=None, attrs: dict | None = None) -> xr.Dataset:
     return xr.Dataset(data_vars, coords, out_attrs)
 
 
-# ---- Files ------------------------------------------------------------------------------
+# ---- Files ---------------------------------------------------------------------------
 
 
 def to_netcdf(ds, path) -> Path:
@@ -600,8 +604,8 @@ def _npz_dataset(path: Path):
     coords = {}
     for axis in ("x", "y"):
         if axis in arrays:
-            coords[axis] = (axis, arrays.pop(axis), _attrs("length", f"cell-centre {axis}",
-                                                            table))
+            coords[axis] = (axis, arrays.pop(axis),
+                            _attrs("length", f"cell-centre {axis}", table))
     if "times" in arrays:
         coords["time"] = ("time", arrays.pop("times"), _attrs("time", "time", table))
     if "shear" in arrays or "tangential_force" in arrays:
@@ -613,7 +617,8 @@ def _npz_dataset(path: Path):
         elif key in _NORMAL_FIELDS and value.ndim == len(_NORMAL_FIELDS[key][0]):
             dims, kind, long_name = _NORMAL_FIELDS[key]
         else:
-            dims, kind, long_name = tuple(f"{key}_{i}" for i in range(value.ndim)), "1", key
+            dims, kind, long_name = (tuple(f"{key}_{i}" for i in range(value.ndim)),
+                                     "1", key)
         data_vars[key] = (dims, value, _attrs(kind, long_name, table))
     attrs = {"metadata": json.dumps(meta), "source_file": str(path)}
     return xr.Dataset(data_vars, coords, attrs)

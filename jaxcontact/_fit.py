@@ -63,7 +63,7 @@ from ._sweep import _AXIS, _pad, _traced_directions
 
 _MAX_STEP = 1.0  # largest change of a log-parameter in one L-BFGS step
 
-# ---------------------------------------------------------------------------------------
+# --------------------------------------------------------------------------------------
 # Data.
 
 
@@ -73,9 +73,11 @@ def _series(name: str, value) -> np.ndarray:
     try:
         arr = np.asarray(value)
     except Exception as exc:  # pragma: no cover - exotic input
-        raise TypeError(f"{name} must be an array of real numbers, got {value!r}") from exc
+        raise TypeError(
+            f"{name} must be an array of real numbers, got {value!r}") from exc
     if arr.dtype == object or arr.dtype.kind not in "iuf":
-        raise TypeError(f"{name} must be an array of real numbers, got dtype {arr.dtype}")
+        raise TypeError(
+            f"{name} must be an array of real numbers, got dtype {arr.dtype}")
     if arr.ndim != 1:
         raise ValueError(f"{name} must be a 1-D array, got shape {arr.shape}")
     bad = ~np.isfinite(arr)
@@ -119,7 +121,8 @@ class IndentationData(eqx.Module):
                 f"(times[{k}]={times[k]!r}, times[{k + 1}]={times[k + 1]!r})"
             )
         if force is None and depth is None:
-            raise ValueError("IndentationData needs force, depth, or both (got neither)")
+            raise ValueError(
+                "IndentationData needs force, depth, or both (got neither)")
         out = {}
         for name, value in (("force", force), ("depth", depth)):
             if value is None:
@@ -137,7 +140,7 @@ class IndentationData(eqx.Module):
         self.depth = out["depth"]
 
 
-# ---------------------------------------------------------------------------------------
+# --------------------------------------------------------------------------------------
 # Parametrisation.
 
 
@@ -196,7 +199,7 @@ def _to_theta(material: Prony, refs: dict, fit_poisson: bool, dtype) -> dict:
     return theta
 
 
-# ---------------------------------------------------------------------------------------
+# --------------------------------------------------------------------------------------
 # The model: one compiled objective.
 
 
@@ -573,7 +576,7 @@ class _Evaluator:
         return np.stack(columns, axis=1)
 
 
-# ---------------------------------------------------------------------------------------
+# --------------------------------------------------------------------------------------
 # Result.
 
 
@@ -663,7 +666,7 @@ class PronyFit(eqx.Module):
         return fit_dataset(self, units=units, attrs=attrs)
 
 
-# ---------------------------------------------------------------------------------------
+# --------------------------------------------------------------------------------------
 # Set-up helpers.
 
 
@@ -694,8 +697,8 @@ def _scene_for(data: IndentationData, template: Scene, dtype):
         value = normal.value
         if not callable(value) and jnp.ndim(value) == 1 and value.shape != times.shape:
             raise ValueError(
-                f"scene_template.normal holds {value.shape[0]} values but the data have "
-                f"{times.shape[0]} times: give the loading as a callable of t, a "
+                f"scene_template.normal holds {value.shape[0]} values but the data "
+                f"have {times.shape[0]} times: give the loading as a callable of t, a "
                 "scalar, or in the data (IndentationData(force=..., depth=...))"
             )
     for name in ("x", "y"):
@@ -704,7 +707,8 @@ def _scene_for(data: IndentationData, template: Scene, dtype):
                 program.value) == 1 and program.value.shape != times.shape:
             raise ValueError(
                 f"scene_template.{name} holds {program.value.shape[0]} values but the "
-                f"data have {times.shape[0]} times: give it as a callable of t or a scalar"
+                f"data have {times.shape[0]} times: give it as a callable of t or a "
+                "scalar"
             )
     scene = Scene(template.grid, template.indenter, template.material, times, normal,
                   template.x, template.y, template.friction, template.coupling,
@@ -829,7 +833,8 @@ def _initial_guess(ev: _Evaluator, refs, fit_poisson, kind, times, target, n, t_
     refined = None
     if apparent.shape[0] > 1 + 2 * n:
         lag = times[use] - times[np.argmax(use)]
-        refined = _prefit(kind, lag, apparent, g_inf, arms, t_init, g0, float(times[-1] - times[0]))
+        refined = _prefit(kind, lag, apparent, g_inf, arms, t_init, g0,
+                          float(times[-1] - times[0]))
     if refined is None:
         return Prony(g_inf, np.full(n, arms / n), t_init, poisson)
     return Prony(*refined, poisson)
@@ -957,7 +962,8 @@ def _discretisation(scene, material, model, curve):
     g = scene.grid
     fine = eqx.tree_at(lambda sc: sc.grid, scene, type(g)(
         shape=tuple(2 * k for k in g.shape), size=g.size, periodic=g.periodic))
-    fine_curve, _ = model(material, (fine, _operator_for(fine, _traced_directions(fine))))
+    fine_curve, _ = model(material,
+                          (fine, _operator_for(fine, _traced_directions(fine))))
     return float(np.sqrt(np.mean((np.asarray(curve) - np.asarray(fine_curve)) ** 2)))
 
 
@@ -988,7 +994,7 @@ def _split(theta: dict, values: np.ndarray) -> dict:
     return {k: np.asarray(v) for k, v in unravel(jnp.asarray(values)).items()}
 
 
-# ---------------------------------------------------------------------------------------
+# --------------------------------------------------------------------------------------
 # The entry point.
 
 
@@ -1055,8 +1061,9 @@ def fit_prony(
       log-parameters otherwise.
     - `lbfgs_steps`: bound on the L-BFGS iterations. Stops early when the largest
       `|d loss / d log param|` falls below `gtol` (default `1e-12` in float64, `1e-6`
-      in float32), when a step changes no log-parameter by more than 1e-12, or when the line search can no longer decrease the loss (the
-      model's own solver tolerance is reached).
+      in float32), when a step changes no log-parameter by more than 1e-12, or when
+      the line search can no longer decrease the loss (the model's own solver
+      tolerance is reached).
     - `precondition`: run the optimisers in coordinates whitened by the Gauss-Newton
       Hessian at the start (`2 p` extra evaluations; usually saves many more).
     - `fixed`: parameters held at given values, not fitted: a dict with any of
@@ -1125,12 +1132,15 @@ def fit_prony(
     if optimiser is None:
         optimiser = "auto"
     if optimiser not in ("auto", "lm", "lbfgs"):
-        raise ValueError(f"optimiser must be 'auto', 'lm' or 'lbfgs', got {optimiser!r}")
+        raise ValueError(
+            f"optimiser must be 'auto', 'lm' or 'lbfgs', got {optimiser!r}")
     if optimiser == "lm" and not _have_optimistix():
-        raise ImportError('optimiser="lm" needs optimistix: pip install "jaxcontact[fit]"')
+        raise ImportError(
+            'optimiser="lm" needs optimistix: pip install "jaxcontact[fit]"')
     if learning_rate is not None and not (
             isinstance(learning_rate, (int, float)) and 0 < learning_rate < 10):
-        raise ValueError(f"learning_rate must be a number in (0, 10), got {learning_rate!r}")
+        raise ValueError(
+            f"learning_rate must be a number in (0, 10), got {learning_rate!r}")
     if noise_std is not None and not (np.isfinite(noise_std) and noise_std > 0):
         raise ValueError(f"noise_std must be finite and > 0, got {noise_std!r}")
     if isinstance(init, str):
@@ -1147,12 +1157,13 @@ def fit_prony(
     fixed_values = {}
     for key, value in dict(fixed or {}).items():
         if key not in ("g_inf", "g", "tau"):
-            raise ValueError(f"fixed: unknown parameter {key!r} (g_inf, g, tau; Poisson's "
-                             "ratio is fixed by default)")
+            raise ValueError(f"fixed: unknown parameter {key!r} (g_inf, g, tau; "
+                             "Poisson's ratio is fixed by default)")
         shape = () if key == "g_inf" else (n,)
         arr = np.asarray(value, float)
         if arr.shape != shape or not np.all(np.isfinite(arr)) or not np.all(arr > 0):
-            raise ValueError(f"fixed[{key!r}] must be {'a number' if not shape else f'{n} numbers'}"
+            raise ValueError(f"fixed[{key!r}] must be "
+                             f"{'a number' if not shape else f'{n} numbers'}"
                              f" > 0, got {value!r}")
         fixed_values[key] = arr
     bound_values = {}
@@ -1204,8 +1215,8 @@ def fit_prony(
         # step, whatever material the optimiser tries.
         options = {"scheme": "linear", **dict(solve_options or {})}
         if "operator" in options:
-            raise ValueError("fit_prony builds the operator itself: leave 'operator' out "
-                             "of solve_options")
+            raise ValueError("fit_prony builds the operator itself: leave 'operator' "
+                             "out of solve_options")
         model = _SceneModel(kind, tuple(sorted(options.items())))
         ctx = (scene, _operator_for(scene, _traced_directions(scene)))
     else:  # a stand-in model (tests): `_model = (callable, ctx)`
@@ -1241,7 +1252,7 @@ def fit_prony(
     def optimise(theta, adam_steps):
         """Adam, then L-BFGS, from `theta`: `(theta, converged, message, adam steps,
         L-BFGS steps)`; appends the losses to `history`."""
-        # -- Preconditioning --------------------------------------------------------------
+        # -- Preconditioning -----------------------------------------------------------
         # The optimisers run on z with theta = theta_0 + M z, M = H^(-1/2) for the
         # Gauss-Newton Hessian H = (2 / nt) J^T J of the loss at the start (J by central
         # differences, 2 p evaluations). The loss is then about isotropic in z: L-BFGS
@@ -1268,11 +1279,12 @@ def fit_prony(
         def z_grad(grad):
             return precond @ ravel_pytree(grad)[0]  # M is symmetric
 
-        # -- Adam --------------------------------------------------------------------------
+        # -- Adam ----------------------------------------------------------------------
         z = jnp.zeros_like(flat0)
         value, grad, _, _ = ev.loss(theta)
         if not np.isfinite(float(value)):
-            raise ValueError(f"the model gives a non-finite loss at the initial guess {init!r}")
+            raise ValueError(
+                f"the model gives a non-finite loss at the initial guess {init!r}")
         value = float(value)
         history.append(value)
         if learning_rate is None:
@@ -1299,12 +1311,13 @@ def fit_prony(
                 best = (value, z, grad)
         value, z, grad = best
 
-        # -- L-BFGS with Armijo backtracking ---------------------------------------------
+        # -- L-BFGS with Armijo backtracking -------------------------------------------
         lbfgs = optax.scale_by_lbfgs(memory_size=20)
         lbfgs_update = jax.jit(lbfgs.update)
         state = lbfgs.init(z)
         g_theta = ravel_pytree(grad)[0]
-        converged, message = False, f"stopped at the iteration bound lbfgs_steps={lbfgs_steps}"
+        converged, message = (
+            False, f"stopped at the iteration bound lbfgs_steps={lbfgs_steps}")
         steps_lbfgs, refreshes, value_at_precond = 0, 0, value
         for _ in range(lbfgs_steps):
             if precondition and refreshes < 4 and value < 1e-2 * value_at_precond:
@@ -1328,7 +1341,8 @@ def fit_prony(
             for _ in range(30):  # bounded backtracking
                 trial = z - alpha * direction
                 value_t, grad_t, _, _ = ev.loss(to_theta(trial))
-                if np.isfinite(float(value_t)) and float(value_t) <= value - 1e-4 * alpha * slope:
+                if (np.isfinite(float(value_t))
+                        and float(value_t) <= value - 1e-4 * alpha * slope):
                     accepted = True
                     break
                 alpha *= 0.5
@@ -1396,10 +1410,12 @@ def fit_prony(
             theta, _, message, a_more, l_more = run(probe, 0)
             n_adam, n_lbfgs, restarts = n_adam + a_more, n_lbfgs + l_more, restarts + 1
         if restarts:
-            message += f" (after {restarts} restart(s) from a parameter at its boundary)"
+            message += (f" (after {restarts} restart(s) from a parameter at its "
+                        "boundary)")
         if probe is not None:
-            message += ("; a parameter at a boundary of the parametrisation (a modulus ~ "
-                        "0 or a time far outside the data's) can still lower the loss")
+            message += ("; a parameter at a boundary of the parametrisation (a "
+                        "modulus ~ 0 or a time far outside the data's) can still lower "
+                        "the loss")
         return theta, message, probe, n_adam, n_lbfgs
 
     def run_lm(theta, adam_steps):
@@ -1424,7 +1440,8 @@ def fit_prony(
             # stalls.
             # So LM takes over where L-BFGS' result is not certified (see below).
             _, _, c_auto, _ = ev.loss(theta)
-            r_auto = (np.asarray(c_auto) - np.asarray(target)) / np.asarray(scale, float)
+            r_auto = ((np.asarray(c_auto) - np.asarray(target))
+                      / np.asarray(scale, float))
             pred = _predicted_decrease(ev.jacobian(theta, fd_step), r_auto)
             value_auto = float(np.mean(r_auto**2))
             floor = 1e-18 if jnp.finfo(dtype).bits >= 64 else 1e-10
@@ -1434,7 +1451,8 @@ def fit_prony(
                     or not (pred < _GN_TOL or pred * value_auto < floor)):
                 # LM from L-BFGS' end AND from the start (L-BFGS may have walked into a
                 # dead arm, where no gradient leads out: the creep file at 16^2, 1 arm,
-                # sent tau_1 to 3e-18 s, while LM from the start converges); the lower loss
+                # sent tau_1 to 3e-18 s, while LM from the start converges); the lower
+                # loss
                 start_lm = with_probes(run_lm, theta_start, 0)
                 end_lm = with_probes(run_lm, theta, 0)
                 best_lm = min((start_lm, end_lm), key=lambda r: float(ev.loss(r[0])[0]))
@@ -1446,7 +1464,7 @@ def fit_prony(
                            f"{message_lm}")
                 used = "lbfgs+lm"
 
-    # -- Finish up: curve, sensitivities -------------------------------------------------
+    # -- Finish up: curve, sensitivities -----------------------------------------------
     value, grad, curve, ok = ev.loss(theta)
     nt = target.shape[0]
     rows = ev.jacobian(theta, fd_step)
@@ -1504,7 +1522,8 @@ def fit_prony(
                 f"or {floor:g} absolute)")
     discretisation = None
     if check_grid and _model is None and not isinstance(scene.indenter, Sphere):
-        message += "; check_grid needs a jc.Sphere indenter (a surface array is per grid)"
+        message += ("; check_grid needs a jc.Sphere indenter (a surface array is per "
+                    "grid)")
     elif check_grid and _model is None:
         discretisation = _discretisation(scene, _to_material(theta, refs, fit_poisson),
                                          model, curve)

@@ -36,7 +36,8 @@ class Grid(eqx.Module):
         except TypeError:
             shape = (shape, shape)
         if len(shape) != 2 or not all(
-            hasattr(s, "__index__") and not isinstance(s, (bool, np.bool_)) for s in shape
+            hasattr(s, "__index__") and not isinstance(s, (bool, np.bool_))
+            for s in shape
         ):
             raise ValueError(f"shape must be two integers (nx, ny), got {shape!r}")
         shape = tuple(int(s) for s in shape)
@@ -46,7 +47,8 @@ class Grid(eqx.Module):
         if size.ndim == 0:
             size = jnp.stack([size, size])
         if size.shape != (2,):
-            raise ValueError(f"size must be a scalar or (Lx, Ly), got shape {size.shape}")
+            raise ValueError(
+                f"size must be a scalar or (Lx, Ly), got shape {size.shape}")
         self.shape = shape
         self.size = _validate.positive("size", size)
         if not isinstance(periodic, (bool, np.bool_)):

@@ -2,7 +2,7 @@ r"""The hereditary integral, step by step.
 
 With a constant Poisson ratio the surface displacement is
 
-    u(t_k) = K1 [ sum_{n <= k} J(t_k - t_n) (tau_n - tau_{n-1}) ]      (paper Eqs. 12-13)
+    u(t_k) = K1 [ sum_{n <= k} J(t_k - t_n) (tau_n - tau_{n-1}) ]     (paper Eqs. 12-13)
 
 with `tau = (q_x, q_y, p)` the traction field, `K1` the elastic operator for unit shear
 modulus and `J` the shear creep compliance. The sum is POINTWISE in space, so each step
@@ -80,7 +80,8 @@ class RecursiveHistory:
         compliance = self.glassy + jnp.sum(self.strengths * (1 - phi))
         expand = (-1,) + (1,) * tau_prev.ndim
         hist = jnp.einsum("i,i...->...", self.strengths,
-                          phi.reshape(expand) * tau_prev[None] - decay.reshape(expand) * h)
+                          phi.reshape(expand) * tau_prev[None]
+                          - decay.reshape(expand) * h)
         half = 0.5 * dt if self.linear else 0.0
         compliance = compliance + self.fluidity * half
         hist = hist + self.fluidity * (lin + (dt - half) * tau_prev)

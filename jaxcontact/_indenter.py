@@ -68,7 +68,8 @@ class Surface(AbstractIndenter):
     def __init__(self, heights):
         heights = _validate.finite("heights", heights)
         if heights.ndim != 2:
-            raise ValueError(f"heights must be an (nx, ny) array, got shape {heights.shape}")
+            raise ValueError(
+                f"heights must be an (nx, ny) array, got shape {heights.shape}")
         self.heights = heights
 
     def gap(self, grid: Grid) -> Float[Array, "nx ny"]:
@@ -83,8 +84,10 @@ def as_indenter(indenter) -> AbstractIndenter:
     """Accept an indenter or an `(nx, ny)` array of initial gaps."""
     if isinstance(indenter, AbstractIndenter):
         return indenter
-    if isinstance(indenter, (jnp.ndarray, np.ndarray)) or hasattr(indenter, "__array__"):
+    if (isinstance(indenter, (jnp.ndarray, np.ndarray))
+            or hasattr(indenter, "__array__")):
         return Surface(indenter)
     raise TypeError(
-        f"indenter must be a jc.Sphere, jc.Surface or an (nx, ny) array, got {indenter!r}"
+        "indenter must be a jc.Sphere, jc.Surface or an (nx, ny) array, got "
+        f"{indenter!r}"
     )

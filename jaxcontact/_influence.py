@@ -110,7 +110,8 @@ def combine(base, poisson):
 
 
 def influence_coefficients(x, y, dx, dy, poisson):
-    """Displacements at `(x, y)` due to unit uniform tractions on the cell at the origin.
+    """Displacements at `(x, y)` due to unit uniform tractions on the cell at the
+    origin.
 
     **Arguments:**
 

@@ -29,8 +29,8 @@ def _program_values(name, value, times):
             out = jnp.broadcast_to(out, times.shape)
     if out.shape != times.shape:
         raise ValueError(
-            f"{name} must be a scalar, an array with one value per time ({times.shape[0]}),"
-            f" or a callable of t; got shape {out.shape}"
+            f"{name} must be a scalar, an array with one value per time "
+            f"({times.shape[0]}), or a callable of t; got shape {out.shape}"
         )
     return out
 

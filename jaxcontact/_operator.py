@@ -92,7 +92,8 @@ def _dc_spectra(grid: Grid, names):
     if xp is np:
         # From the concrete size in NumPy: inside a jit trace even operations on
         # constants are staged, so `grid.spacing` would be a tracer there.
-        dx, dy = (float(v) for v in np.asarray(grid.size, np.float64) / np.array([nx, ny]))
+        dx, dy = (float(v)
+                  for v in np.asarray(grid.size, np.float64) / np.array([nx, ny]))
     else:
         dx, dy = grid.spacing
     lx, ly = padded_shape(grid.shape)
@@ -114,7 +115,8 @@ def _dc_spectra(grid: Grid, names):
 def _alias_sum(grid: Grid, names, aliases: int, xp):
     nx, ny = grid.shape
     if xp is np:
-        dx, dy = (float(v) for v in np.asarray(grid.size, np.float64) / np.array([nx, ny]))
+        dx, dy = (float(v)
+                  for v in np.asarray(grid.size, np.float64) / np.array([nx, ny]))
     else:
         dx, dy = grid.spacing
     kx0 = 2 * np.pi * xp.fft.fftfreq(nx) / dx
@@ -140,7 +142,8 @@ def _alias_sum(grid: Grid, names, aliases: int, xp):
             "szy": lambda: -ky / k2,
         }
         for name in names:
-            out[name] = out[name] + xp.sum(xp.where(zero, 0.0, terms[name]() * shape), axis=-1)
+            out[name] = out[name] + xp.sum(xp.where(zero, 0.0, terms[name]() * shape),
+                                           axis=-1)
     return out
 
 
@@ -160,7 +163,8 @@ def _periodic_spectra(grid: Grid, names, aliases: int = 10):
     for name in names:
         spec = summed[name]
         if name == "szx" and nx % 2 == 0:  # odd kernels: zero Nyquist entries
-            spec = spec.at[nx // 2, :].set(0.0) if xp is jnp else _zero_row(spec, nx // 2)
+            spec = (spec.at[nx // 2, :].set(0.0) if xp is jnp
+                    else _zero_row(spec, nx // 2))
         if name == "szy" and ny % 2 == 0:
             spec = spec.at[:, -1].set(0.0) if xp is jnp else _zero_col(spec, -1)
         out[name] = jnp.asarray(spec, dtype=grid.size.dtype)
@@ -213,7 +217,8 @@ class HalfSpace(eqx.Module):
     tangential_y: bool = eqx.field(static=True)
     spectra: dict[str, Float[Array, "kx ky"]]
 
-    def __init__(self, grid: Grid, coupling: Coupling = "normal", tangential_y: bool = True):
+    def __init__(self, grid: Grid, coupling: Coupling = "normal",
+                 tangential_y: bool = True):
         if not isinstance(grid, Grid):
             raise TypeError(f"grid must be a jc.Grid, got {grid!r}")
         if coupling not in _COUPLINGS:
@@ -319,7 +324,8 @@ class HalfSpace(eqx.Module):
         return (1 - poisson) * (self._spectrum("s1", transposed)
                                 + self._spectrum("s2", transposed))
 
-    def apply_normal(self, pressure: Float[Array, "nx ny"], poisson) -> Float[Array, "nx ny"]:
+    def apply_normal(self, pressure: Float[Array, "nx ny"],
+                     poisson) -> Float[Array, "nx ny"]:
         """Normal displacement `u_z` [length] due to `pressure`, unit shear modulus."""
         return self.inverse(self.forward(pressure) * self.normal_spectrum(poisson))
 
@@ -357,8 +363,10 @@ class HalfSpace(eqx.Module):
         zy = c * self._spectrum("szy", transposed) if self.coupling == "full" else None
         return zx, zy
 
-    def apply(self, traction: Float[Array, "3 nx ny"], poisson) -> Float[Array, "3 nx ny"]:
-        """Displacements `(u_x, u_y, u_z)` due to tractions `(q_x, q_y, p)`, unit modulus.
+    def apply(self, traction: Float[Array, "3 nx ny"],
+              poisson) -> Float[Array, "3 nx ny"]:
+        """Displacements `(u_x, u_y, u_z)` due to tractions `(q_x, q_y, p)`, unit
+        modulus.
 
         Only the blocks of this operator's `coupling` are applied; components whose
         blocks are absent come out as zeros (e.g. `u_y` when `tangential_y=False`).

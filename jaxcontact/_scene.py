@@ -52,7 +52,8 @@ def _concrete_values(name, program, times):
         return None
     values = np.asarray(values)
     if not np.isfinite(values).all():
-        raise ValueError(f"{name} must be finite (no NaN or inf) at every time, got {values!r}")
+        raise ValueError(
+            f"{name} must be finite (no NaN or inf) at every time, got {values!r}")
     return values
 
 
@@ -99,9 +100,10 @@ def warn_if_too_large(indenter, grid, radius_estimate, stacklevel=3):
         warnings.warn(
             _validate.EdgeContactWarning(
                 f"the expected contact radius {radius_estimate:.4g} exceeds the room "
-                f"{room:.4g} between the sphere's centre and the outer ring of cells of "
-                f"the grid (size {half * 2}): the contact will reach the domain edge and "
-                "the solution will be truncated. Enlarge grid.size or lower the load."
+                f"{room:.4g} between the sphere's centre and the outer ring of cells "
+                f"of the grid (size {half * 2}): the contact will reach the domain "
+                "edge and the solution will be truncated. Enlarge grid.size or lower "
+                "the load."
             ),
             stacklevel=stacklevel,
         )
@@ -226,8 +228,8 @@ def warn_if_surface_too_large(grid, contact, stacklevel=3):
         _validate.EdgeContactWarning(
             f"the expected contact of the surface indenter {what} of the grid (size "
             f"{np.asarray(grid.size)}): the solution will be truncated by the domain. "
-            "Enlarge grid.size, lower the load, or use a periodic grid for a patch of a "
-            "rough surface."
+            "Enlarge grid.size, lower the load, or use a periodic grid for a patch of "
+            "a rough surface."
         ),
         stacklevel=stacklevel,
     )
@@ -242,8 +244,8 @@ class Scene(eqx.Module):
     - `indenter`: a `jc.Sphere`, a `jc.Surface`, or an `(nx, ny)` array of initial gaps
       [length].
     - `material`: the half-space material (`jc.Elastic`, ...).
-    - `times`: `(nt,)` strictly increasing times [time]. Consecutive entries are steps of
-      one quasi-static loading path: the friction state carries over.
+    - `times`: `(nt,)` strictly increasing times [time]. Consecutive entries are steps
+      of one quasi-static loading path: the friction state carries over.
     - `normal`: `jc.Force(W)` (load control) or `jc.Displacement(delta_z)`.
     - `x`, `y`: tangential inputs, `jc.Force(F)` or `jc.Displacement(delta)`, or `None`
       (no tangential input). A direction with no input that is solved (y under
@@ -265,9 +267,9 @@ class Scene(eqx.Module):
     **Raises:** `TypeError` for arguments of the wrong kind; `ValueError` (naming the
     argument and the bad value) for NaN/inf, negative friction, non-scalar friction,
     empty or non-increasing `times`, a load program whose length differs from `times`
-    (or a callable returning NaN), a negative normal force, a surface whose shape differs
-    from the grid, an unknown `coupling` or `slip`. The values are also checked as a
-    solve in the grid's dtype sees them (`jc.solve` casts to it): `times` must stay
+    (or a callable returning NaN), a negative normal force, a surface whose shape
+    differs from the grid, an unknown `coupling` or `slip`. The values are also checked
+    as a solve in the grid's dtype sees them (`jc.solve` casts to it): `times` must stay
     strictly increasing once cast, each step within 1 %; loads, friction, size and the
     indenter must stay finite; the material must pass its own checks in that dtype and
     its creep compliance `J(0)`, `J(t_end - t_0)` [1/stress] lie within
@@ -330,7 +332,8 @@ class Scene(eqx.Module):
         if not _validate.is_traced(times) and times.shape[0] > 1:
             steps = np.diff(np.asarray(times))
             if not (steps > 0).all():
-                raise ValueError(f"times must be strictly increasing, got {np.asarray(times)!r}")
+                raise ValueError(
+                    f"times must be strictly increasing, got {np.asarray(times)!r}")
         dtype = grid.size.dtype  # the solve's dtype: validate what it will see
         check_times_in_dtype(times, dtype)
         if _validate.is_traced(times) and times.shape[0] > 1:
@@ -341,10 +344,11 @@ class Scene(eqx.Module):
             )
         self.grid = grid
         self.indenter = as_indenter(indenter)
-        if isinstance(self.indenter, Surface) and self.indenter.heights.shape != grid.shape:
+        if (isinstance(self.indenter, Surface)
+                and self.indenter.heights.shape != grid.shape):
             raise ValueError(
-                f"indenter: the surface heights have shape {self.indenter.heights.shape}"
-                f" but the grid is {grid.shape}"
+                "indenter: the surface heights have shape "
+                f"{self.indenter.heights.shape} but the grid is {grid.shape}"
             )
         self.material = material
         self.times = times
@@ -352,7 +356,8 @@ class Scene(eqx.Module):
         self.x = _check_program("x", x, allow_none=True)
         self.y = _check_program("y", y, allow_none=True)
         if coupling == "x" and y is not None:
-            raise ValueError('coupling="x" is semi-coupled (q_y = 0): it takes no y input')
+            raise ValueError(
+                'coupling="x" is semi-coupled (q_y = 0): it takes no y input')
         self.friction = _validate.scalar(
             "friction", _validate.non_negative("friction", friction)
         )

@@ -14,8 +14,8 @@ class Solution(eqx.Module):
     - `pressure`: `(nt, nx, ny)` contact pressure `p >= 0` [stress].
     - `shear`: `(nt, 2, nx, ny)` shear traction `(q_x, q_y)` on the half-space [stress].
     - `contact`: `(nt, nx, ny)` mask `p > 0`.
-    - `stick`: `(nt, nx, ny)` mask of stick cells (`|q| < mu p`); all of the contact when
-      nothing drives a tangential solve and `mu > 0`; empty when `mu = 0`.
+    - `stick`: `(nt, nx, ny)` mask of stick cells (`|q| < mu p`); all of the contact
+      when nothing drives a tangential solve and `mu > 0`; empty when `mu = 0`.
     - `normal_force`: `(nt,)` load `W` [force]; `approach`: `(nt,)` rigid-body approach
       `delta_z` [length].
     - `tangential_force`: `(nt, 2)` `(F_x, F_y)` [force];

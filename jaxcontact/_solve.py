@@ -1,4 +1,5 @@
-"""`jc.solve`: the entry point. Time stepping over the scene's `times` with `lax.scan`."""
+"""`jc.solve`: the entry point. Time stepping over the scene's `times` with
+`lax.scan`."""
 
 import sys
 import warnings
@@ -117,7 +118,8 @@ def _solve(scene: Scene, operator: HalfSpace, controls: _Controls,
     # float32 grid is cast, so the time-stepping carry keeps one dtype.
     material = jax.tree_util.tree_map(
         lambda leaf: leaf.astype(dtype)
-        if isinstance(leaf, (jax.Array, np.ndarray)) and jnp.issubdtype(leaf.dtype, jnp.floating)
+        if isinstance(leaf, (jax.Array, np.ndarray))
+        and jnp.issubdtype(leaf.dtype, jnp.floating)
         else leaf,
         scene.material,
     )
@@ -169,7 +171,8 @@ def _solve(scene: Scene, operator: HalfSpace, controls: _Controls,
             adjoint=adjoint, throw=throw)
         if progress is not None:
             jax.debug.callback(progress, k, times.shape[0], ordered=True)
-        tau_new = jnp.zeros((3, nx, ny), dtype).at[:nd].set(res.shear).at[2].set(res.pressure)
+        tau_new = (jnp.zeros((3, nx, ny), dtype).at[:nd].set(res.shear)
+                   .at[2].set(res.pressure))
         h_state = hereditary.update(h_state, tau_prev, tau_new, k, dt)
         return (res.pressure, res.shear, res.slip, p_prev, q_prev, h_state, seed), res
 
@@ -222,8 +225,8 @@ def _raise_on_failure(sol: Solution) -> Solution:
         return item.error_if(sol, jnp.any(failed))
     if bool(jnp.any(failed)):
         raise ValueError(f"{RESULTS[item]}\n(time step {int(first)} of "
-                         f"{sol.times.shape[0]}; jc.solve(..., throw=False) returns the "
-                         "flags instead)")
+                         f"{sol.times.shape[0]}; jc.solve(..., throw=False) returns "
+                         "the flags instead)")
     return sol
 
 
@@ -336,7 +339,8 @@ def solve(
     if not isinstance(throw, bool):
         raise TypeError(f"throw must be a bool, got {throw!r}")
     if history not in ("auto", "recursive", "direct"):
-        raise ValueError(f'history must be "auto", "recursive" or "direct", got {history!r}')
+        raise ValueError(
+            f'history must be "auto", "recursive" or "direct", got {history!r}')
     if scheme not in ("constant", "linear"):
         raise ValueError(f'scheme must be "constant" or "linear", got {scheme!r}')
     if rtol is not None:
@@ -349,8 +353,9 @@ def solve(
         g_op, g_sc = operator.grid, scene.grid
         if g_op.shape != g_sc.shape or g_op.periodic != g_sc.periodic:
             raise ValueError(
-                f"operator was built for a {g_op.shape} grid (periodic={g_op.periodic}),"
-                f" the scene's grid is {g_sc.shape} (periodic={g_sc.periodic})"
+                f"operator was built for a {g_op.shape} grid "
+                f"(periodic={g_op.periodic}), the scene's grid is {g_sc.shape} "
+                f"(periodic={g_sc.periodic})"
             )
         n_dir = scene.tangential_directions
         if n_dir > 0 and (operator.coupling != scene.coupling
@@ -385,7 +390,8 @@ def solve(
     elif progress is False:
         progress = None
     elif progress is not None and not callable(progress):
-        raise TypeError(f"progress must be None, a bool or a callable, got {progress!r}")
+        raise TypeError(
+            f"progress must be None, a bool or a callable, got {progress!r}")
     # A failed run-time check (traced bad input, or a step that did not converge with
     # `throw`) raises a ValueError whose first line is its message.
     with _validate.clear_runtime_errors():

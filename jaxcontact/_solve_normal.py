@@ -11,14 +11,17 @@ from jaxtyping import Array, Bool, Float, Int
 
 from . import _validate
 from ._grid import Grid
-from ._scene import (
-    _check_finite_in_dtype, expected_contact_radius, expected_surface_contact,
-    warn_if_surface_too_large, warn_if_too_large,
-)
 from ._indenter import AbstractIndenter, Sphere, as_indenter
-from ._material.base import AbstractMaterial, check_in_dtype
 from ._loading import Displacement, Force
+from ._material.base import AbstractMaterial, check_in_dtype
 from ._operator import HalfSpace
+from ._scene import (
+    _check_finite_in_dtype,
+    expected_contact_radius,
+    expected_surface_contact,
+    warn_if_surface_too_large,
+    warn_if_too_large,
+)
 from ._solution import edge_ring
 from ._solver.base import StepGuess, StepProblem
 from ._solver.normal import PolonskyKeer, hertzian_guess
@@ -268,7 +271,8 @@ def solve_normal(
         raise TypeError(f"grid must be a jc.Grid, got {grid!r}")
     if (force is None) == (approach is None):
         raise ValueError("give exactly one of force= (load control) or approach= "
-                         f"(displacement control); got force={force!r}, approach={approach!r}")
+                         f"(displacement control); got force={force!r}, "
+                         f"approach={approach!r}")
     if not isinstance(material, AbstractMaterial):
         raise TypeError(f"material must be a jaxcontact material, got {material!r}")
     if not isinstance(solver, PolonskyKeer):
@@ -289,7 +293,8 @@ def solve_normal(
     indenter = as_indenter(indenter)
     h = indenter.gap(grid)
     if h.shape != grid.shape:
-        raise ValueError(f"the indenter's gap has shape {h.shape}, the grid is {grid.shape}")
+        raise ValueError(
+            f"the indenter's gap has shape {h.shape}, the grid is {grid.shape}")
     if operator is None:
         operator = normal_operator(grid)
     elif not isinstance(operator, HalfSpace):

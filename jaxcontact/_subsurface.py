@@ -301,7 +301,8 @@ def _corner_differences(f, xp):
 
 
 def _kernel_spectra(grid: Grid, z, poisson, loads, xp):
-    """rfft2 of the wrap-around stress coefficients at depth `z`: `{load: (6, 2nx, ny+1)}`.
+    """rfft2 of the wrap-around stress coefficients at depth `z`:
+    `{load: (6, 2nx, ny+1)}`.
 
     The corner functions are evaluated once on the `(2nx+1) x (2ny+1)` cell corners of
     the offsets `-nx .. nx-1` (each corner is shared by four cells), differenced into
@@ -364,7 +365,8 @@ def _stress_from_spectra(spectra, traction_hat, nx, ny):
 
 @jax.jit
 def _concrete_depth(spectra, pressure, shear):
-    """One depth from precomputed kernel spectra (jitted: one compile per grid shape)."""
+    """One depth from precomputed kernel spectra (jitted: one compile per grid
+    shape)."""
     nx, ny = pressure.shape
     return _stress_from_spectra(spectra, _tractions_hat(pressure, shear), nx, ny)
 

@@ -50,8 +50,8 @@ def _parse(scene: Scene, batched: dict) -> tuple[dict, int]:
         if path[0] not in _SWEEPABLE:
             raise ValueError(
                 f"jc.sweep cannot batch {key!r}: the batched fields are {_SWEEPABLE} "
-                "(or a nested field as material__g_inf); grid, coupling and slip fix the "
-                "compiled program"
+                "(or a nested field as material__g_inf); grid, coupling and slip fix "
+                "the compiled program"
             )
         try:
             _getter(path)(scene)
@@ -66,7 +66,8 @@ def _parse(scene: Scene, batched: dict) -> tuple[dict, int]:
         )
         leaves = [x for x in jax.tree.leaves(value) if eqx.is_array(x)]
         if not leaves:
-            raise ValueError(f"jc.sweep: {key} holds no array to batch over, got {value!r}")
+            raise ValueError(
+                f"jc.sweep: {key} holds no array to batch over, got {value!r}")
         for leaf in leaves:
             if leaf.ndim == 0:
                 raise ValueError(
@@ -79,7 +80,8 @@ def _parse(scene: Scene, batched: dict) -> tuple[dict, int]:
     if len(all_sizes) != 1:
         got = {key: sorted(s) for key, s in sizes.items()}
         raise ValueError(
-            f"jc.sweep: every batched array must have the same leading (batch) size, got {got}"
+            "jc.sweep: every batched array must have the same leading (batch) size, "
+            f"got {got}"
         )
     size = all_sizes.pop()
     if size == 0:
@@ -102,7 +104,8 @@ def _traced_directions(scene: Scene) -> int:
 
 
 def _pad(x, padded: int):
-    """Pad the leading axis to `padded` by repeating the last entry (a valid problem)."""
+    """Pad the leading axis to `padded` by repeating the last entry (a valid
+    problem)."""
     extra = padded - x.shape[0]
     if extra == 0:
         return x
@@ -189,8 +192,8 @@ def sweep(scene: Scene, /, *, solve_options: dict | None = None, devices=None,
     # raising for the whole batch; `throw=True` in solve_options raises.
     options.setdefault("throw", False)
     if "operator" in options:
-        raise ValueError("jc.sweep builds the operator once itself: leave 'operator' out "
-                         "of solve_options")
+        raise ValueError("jc.sweep builds the operator once itself: leave 'operator' "
+                         "out of solve_options")
     values, size = _parse(scene, batched)
     if client is not None:
         from ._sweep_dask import check_client, sweep_on_client
@@ -208,7 +211,8 @@ def sweep(scene: Scene, /, *, solve_options: dict | None = None, devices=None,
         raise ValueError("jc.sweep: devices is empty")
 
     # Initial set-up: the operator the traced solve needs, from entry 0.
-    first = _replace(scene, jax.tree.map(lambda x: x[0] if eqx.is_array(x) else x, values))
+    first = _replace(scene, jax.tree.map(lambda x: x[0] if eqx.is_array(x) else x,
+                                         values))
     operator = _operator_for(first, _traced_directions(first))
     # Callables (e.g. a jc.Force(lambda t: ...) value) stay static.
     dynamic, static = eqx.partition((scene, operator), eqx.is_array)

@@ -9,10 +9,10 @@ time (see `EQX_ON_ERROR`).
 import contextlib
 import re
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-import equinox as eqx
 
 
 _RUNTIME_MESSAGE = re.compile(r"EquinoxRuntimeError: (.+)")
@@ -58,18 +58,21 @@ def clear_runtime_errors():
 
 def is_traced(x) -> bool:
     """True if any leaf of `x` is a JAX tracer (we are inside a transformation)."""
-    return any(isinstance(leaf, jax.core.Tracer) for leaf in jax.tree_util.tree_leaves(x))
+    return any(isinstance(leaf, jax.core.Tracer)
+               for leaf in jax.tree_util.tree_leaves(x))
 
 
 def as_float_array(name: str, value, dtype=None) -> jax.Array:
-    """Convert `value` to a floating JAX array, rejecting complex and non-numeric input."""
+    """Convert `value` to a floating JAX array, rejecting complex and non-numeric
+    input."""
     if isinstance(value, (bool, np.bool_)):
         raise TypeError(f"{name} must be a real number, got the boolean {value!r}")
     if not is_traced(value):
         try:
             arr = np.asarray(value)
         except Exception as exc:  # pragma: no cover - exotic input
-            raise TypeError(f"{name} must be a real number or array, got {value!r}") from exc
+            raise TypeError(
+                f"{name} must be a real number or array, got {value!r}") from exc
         if arr.dtype == object or arr.dtype.kind not in "biuf":
             raise TypeError(f"{name} must be a real number or array, got {value!r}")
     if dtype is None:
@@ -105,7 +108,8 @@ def positive(name: str, value) -> jax.Array:
 
 def non_negative(name: str, value) -> jax.Array:
     value = as_float_array(name, value)
-    return _check(name, value, lambda v: ~(jnp.isfinite(v) & (v >= 0)), "finite and >= 0")
+    return _check(name, value, lambda v: ~(jnp.isfinite(v) & (v >= 0)),
+                  "finite and >= 0")
 
 
 def poisson_ratio(name: str, value) -> jax.Array:

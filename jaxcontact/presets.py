@@ -659,7 +659,8 @@ def _floats(where, value):
         return isinstance(v, bool) or not isinstance(v, int | float)
 
     if bad(value):
-        raise ValueError(f"{where} must be a number or a list of numbers, got {value!r}")
+        raise ValueError(
+            f"{where} must be a number or a list of numbers, got {value!r}")
     try:
         return np.asarray(value, dtype=float)
     except ValueError:  # ragged
@@ -727,7 +728,8 @@ def _heights_file(path: Path) -> np.ndarray:
     except (OSError, ValueError) as exc:
         if str(exc).startswith("[indenter]"):
             raise
-        raise ValueError(f"[indenter] file {str(path)!r} cannot be read: {exc}") from None
+        raise ValueError(
+            f"[indenter] file {str(path)!r} cannot be read: {exc}") from None
     if heights.dtype.kind not in "iuf":
         raise ValueError(
             f"[indenter] file {str(path)!r} must hold real numbers, got dtype "
@@ -760,8 +762,8 @@ def _indenter(table, grid, base, n):
             raise ValueError(f"[indenter] scale must be a number, got {scale!r}")
         if n is not None and heights.shape != grid.shape:
             raise ValueError(
-                f"--n / n={n}: a surface file is not resampled; {str(path)!r} has shape "
-                f"{heights.shape}"
+                f"--n / n={n}: a surface file is not resampled; {str(path)!r} has "
+                f"shape {heights.shape}"
             )
         if heights.shape != grid.shape:
             raise ValueError(

@@ -1,4 +1,5 @@
-# slow (~2-4 min at ci size, kept out of the default run for the CI time budget; test_fit.py and test_afm.py cover the same paths)
+# slow (~2-4 min at ci size, kept out of the default run for the CI time budget;
+# test_fit.py and test_afm.py cover the same paths)
 # %% [markdown]
 # # Fitting a Prony series to indentation tests
 #
@@ -37,7 +38,8 @@ import jaxcontact as jc  # noqa: E402
 
 SIZE = os.environ.get("JAXCONTACT_NOTEBOOK_SIZE", "small")
 if SIZE not in ("ci", "small", "paper"):
-    raise ValueError(f"JAXCONTACT_NOTEBOOK_SIZE must be ci, small or paper, got {SIZE!r}")
+    raise ValueError(
+        f"JAXCONTACT_NOTEBOOK_SIZE must be ci, small or paper, got {SIZE!r}")
 N = {"ci": 16, "small": 32, "paper": 64}[SIZE]
 NT = {"ci": 16, "small": 24, "paper": 40}[SIZE]
 NOISE_LEVELS = {"ci": (0.0, 0.01), "small": (0.0, 0.003, 0.01, 0.03),
@@ -47,7 +49,8 @@ AFM_BINS = {"ci": {"approach": 6, "hold": 14, "retract": 5},
             "small": {"approach": 8, "hold": 24, "retract": 8},
             "paper": {"approach": 12, "hold": 40, "retract": 12}}[SIZE]
 OUT = os.environ.get("JAXCONTACT_NOTEBOOK_OUT")
-DATA = Path(globals().get("__file__", "notebooks/x.py")).resolve().parents[1] / "tests" / "data"
+DATA = (Path(globals().get("__file__", "notebooks/x.py")).resolve().parents[1]
+        / "tests" / "data")
 
 
 def show(fig, name):
@@ -156,7 +159,8 @@ def lee_radok_depth(p, n=2):
 
 
 p0 = np.log([1 / g0, 0.3 / g0, 0.3 / g0, 0.05, 1.0])
-lr = scipy.optimize.least_squares(lambda p: (lee_radok_depth(p) - d_lr) / d_lr.max(), p0)
+lr = scipy.optimize.least_squares(lambda p: (lee_radok_depth(p) - d_lr) / d_lr.max(),
+                                  p0)
 j_lr = lambda s: np.exp(lr.x[0]) + np.sum(  # noqa: E731
     np.exp(lr.x[1:3]) * (1 - np.exp(-np.asarray(s)[..., None] / np.exp(lr.x[3:]))),
     axis=-1)
@@ -168,8 +172,8 @@ rel = np.max(np.abs(j_model / j_closed - 1))
 print(f"Lee-Radok closed form: J_0 = {np.exp(lr.x[0]):.3g} 1/Pa, J_i = "
       f"{np.exp(lr.x[1:3])}, lambda = {np.exp(lr.x[3:])} s; residual RMS "
       f"{np.sqrt(np.mean((lee_radok_depth(lr.x) - d_lr) ** 2)):.3g} m")
-print(f"J(t) of the contact-model fit against the closed form, 0.02 s..{t_hold[-1]:.1f} "
-      f"s: largest relative difference {rel:.3f}")
+print(f"J(t) of the contact-model fit against the closed form, 0.02 "
+      f"s..{t_hold[-1]:.1f} s: largest relative difference {rel:.3f}")
 
 fig, ax = plt.subplots(1, 2, figsize=(10, 3.8))
 ax[0].semilogx(s_cmp, j_model * 1e3, "C1-", label=f"contact model ({AFM_N}$^2$)")
@@ -241,12 +245,14 @@ depth = jnp.where(times > 0, 20e-6, 0.0)
 scene = jc.Scene(grid, jc.Sphere(R), true, times, normal=jc.Displacement(depth))
 start = time.perf_counter()
 clean = np.asarray(jc.solve(scene).normal_force)
-print(f"{N}^2 x {NT} steps: one solve {time.perf_counter() - start:.1f} s (with compile)")
+print(f"{N}^2 x {NT} steps: one solve {time.perf_counter() - start:.1f} s "
+      "(with compile)")
 # Sanity check against Lee & Radok for an indentation held from t_1 = 0.5 s:
 # F(t) / F(t_1) = G(t - t_1) / G(0) (the piecewise-constant time scheme on these
 # log-spaced steps lags by up to ~1 %).
 ratio = clean[1:] / clean[1]
-lee_radok = np.asarray(true.relaxation(times[1:] - times[1])) / float(true.relaxation(0.0))
+lee_radok = (np.asarray(true.relaxation(times[1:] - times[1]))
+             / float(true.relaxation(0.0)))
 np.testing.assert_allclose(ratio, lee_radok, rtol=2e-2)
 
 rng = np.random.default_rng(2024)
@@ -289,7 +295,8 @@ print("relative error:", np.array2string(err, precision=3), " GN std (log):",
 fig, ax = plt.subplots(1, 2, figsize=(10, 3.8))
 ax[0].semilogy(fit.loss_history, ".-")
 ax[0].axhline(noise**2, color="k", ls="--", lw=0.8, label="noise$^2$ (relative)")
-ax[0].set(xlabel="start, end of each optimiser run", ylabel="loss", title="loss history")
+ax[0].set(xlabel="start, end of each optimiser run", ylabel="loss",
+          title="loss history")
 ax[0].legend()
 ax[1].semilogx(times[1:], measured[1:], ".", ms=4, label="measured (0.3 % noise)")
 ax[1].semilogx(times[1:], fit.curve[1:], "-", label="fitted model")

@@ -265,7 +265,8 @@ h1 = jc.Hertz(t1["radius"], t1["force"], t1["shear_modulus"], t1["poisson"])
 a_rel = float(h1.contact_radius) / t1["a0"] - 1
 p_rel = float(h1.peak_pressure) / t1["p0"] - 1
 verdict(
-    "Table 1", "a0 = 117 um and p0 = 3487 MPa for the Maxwell case's instantaneous modulus",
+    "Table 1",
+    "a0 = 117 um and p0 = 3487 MPa for the Maxwell case's instantaneous modulus",
     "Hertz a0, p0 from the preset's (converted) modulus",
     abs(a_rel) < 5e-3 and abs(p_rel) < 5e-3,
     f"a0 = {float(h1.contact_radius) * 1e6:.1f} um ({a_rel:+.2%}), p0 = "
@@ -309,11 +310,13 @@ for k in picks:
     dev = np.abs(row(sol.pressure[k]) - p_ref)
     errs.append(dev.max() / p_ref.max())
     where.append(abs(x[np.argmax(dev)]) / float(ref.contact_radius(tk)))
-    inner.append(dev[np.abs(x) < 0.8 * float(ref.contact_radius(tk))].max() / p_ref.max())
+    inner.append(dev[np.abs(x) < 0.8 * float(ref.contact_radius(tk))].max()
+                 / p_ref.max())
     uz = U[k, 2]
     gap = gap0 + uz - sol.approach[k]
     conform = max(conform, float(np.abs(gap[sol.contact[k]]).max() / sol.approach[k]))
-    ax[0].plot(x / t1["a0"], -row(uz) * 1e6, color=line.get_color(), label=f"{tk:.2g} tau")
+    ax[0].plot(x / t1["a0"], -row(uz) * 1e6, color=line.get_color(),
+               label=f"{tk:.2g} tau")
     lr_uz = lee_radok_profile(np.abs(x), float(ref.contact_radius(tk)), t1["radius"])
     ax[0].plot(x / t1["a0"], -lr_uz * 1e6, "o", ms=2, color=line.get_color())
     ax[0].plot(
@@ -322,7 +325,8 @@ for k in picks:
 ax[0].set(xlabel="x / a0", ylabel="surface height -u_z [um]",
           ylim=(-1.1 * U[:, 2].max() * 1e6, 1),
           title="Fig. 4: surface (solid), Lee-Radok (dots), sphere (dotted)")
-ax[1].set(xlabel="x / a0", ylabel="p / p0", title="Fig. 5: lines jaxcontact, dots Lee-Radok")
+ax[1].set(xlabel="x / a0", ylabel="p / p0",
+          title="Fig. 5: lines jaxcontact, dots Lee-Radok")
 ax[1].legend(fontsize=7)
 show(fig, "fig04_05_maxwell")
 delta_ref = np.array([float(ref.approach(float(sol.times[k]))) for k in picks])
@@ -335,7 +339,8 @@ check((np.diff(sol.contact.sum(axis=(1, 2))) >= 0).all(), "the contact never shr
 check(delta_err < 0.02, f"approach within 2 % of Lee-Radok's ({delta_err:.2%})")
 # The surface from the solved tractions closes the gap in the contact (round-off and
 # the solver's rtol: ~1e-8 of the approach).
-check(conform < 1e-5, f"the deformed surface fits the sphere in the contact ({conform:.1e})")
+check(conform < 1e-5,
+      f"the deformed surface fits the sphere in the contact ({conform:.1e})")
 # The whole profile, outside the contact too, against Lee & Radok's (measured: 1.4e-3
 # of the approach at 64^2 for the Zener steps; the edge cells of the piecewise-constant
 # pressure).
@@ -367,7 +372,8 @@ verdict(
     peak_drop < 0.8 and r_peak > 0.5 and delta_err < 0.02,
     f"peak x{peak_drop:.2f}; maximum at r = {r_peak:.2f} a(t) (p_centre / p_max = "
     f"{centre:.2f}); approach within {delta_err:.2%} of Lee-Radok; pressure within "
-    f"{max(errs):.1%} of its peak, the largest deviation at r = {where[int(np.argmax(errs))]:.2f} "
+    f"{max(errs):.1%} of its peak, the largest deviation at r = "
+    f"{where[int(np.argmax(errs))]:.2f} "
     f"a(t) (the edge cells, where the Lee-Radok pressure drops to zero within a cell); "
     f"inside r < 0.8 a within {max(inner):.1%}",
     values=dict(peak_drop=peak_drop, r_peak=r_peak, approach_err=delta_err,
@@ -505,7 +511,8 @@ axes[0].set_ylabel("p / p0")
 show(fig, "fig08_zener")
 far = {r: max(peak_position(s, o, k)[0] for k in range(len(o.times)))
        for r, (s, o) in zener.items()}
-rise = {r: max(edge_rise(o, k) for k in range(len(o.times))) for r, (s, o) in zener.items()}
+rise = {r: max(edge_rise(o, k) for k in range(len(o.times)))
+        for r, (s, o) in zener.items()}
 verdict(
     "Fig. 8a-c,e", "Hertz-like pressure for ratios 2 and 4, edge spikes for 8 and 10",
     "farthest position of the pressure maximum from the centre over 3 tau, r / a(t)",
@@ -540,8 +547,8 @@ verdict(
     "sign changes of the centre pressure's increments; min p_centre / p_centre(0); "
     f"9 points vs {len(fine.times)}",
     sw_c > sw_f or min_c < 0.5 * min_f,
-    f"9 points: {sw_c} swings, min {min_c:.2f}; {len(fine.times)} points: {sw_f} swings, "
-    f"min {min_f:.2f}",
+    f"9 points: {sw_c} swings, min {min_c:.2f}; {len(fine.times)} points: {sw_f} "
+    f"swings, min {min_f:.2f}",
     values=dict(swings_coarse=sw_c, swings_fine=sw_f, min_coarse=min_c, min_fine=min_f),
 )
 
@@ -550,14 +557,16 @@ scene = P.zener(
 )
 sol = solve(scene, "Zener ratio 10, Fig. 8f")
 r_end, c_end = peak_position(scene, sol, -1)
-settle = abs(sol.approach[-1] / sol.approach[int(round(5 / 6 * (len(sol.times) - 1)))] - 1)
+settle = abs(sol.approach[-1] / sol.approach[int(round(5 / 6 * (len(sol.times) - 1)))]
+             - 1)
 verdict(
     "Fig. 8f", "with T = 6 tau the spikes are gone at the end (Hertz-like) and the "
     "contact is near steady after 5 tau",
     "position of the maximum at the end, r / a; approach change from 5 to 6 tau",
     r_end < 0.3 and settle < 0.02,
     f"maximum at r = {r_end:.2f} a(t) (p_centre / p_max = {c_end:.3f}); approach "
-    f"change {settle:.2%} from {sol.times[int(round(5 / 6 * (len(sol.times) - 1)))] / TAU:.1f} "
+    f"change {settle:.2%} from "
+    f"{sol.times[int(round(5 / 6 * (len(sol.times) - 1)))] / TAU:.1f} "
     f"to {sol.times[-1] / TAU:.0f} tau",
     values=dict(r_end=r_end, settle=settle),
 )
@@ -635,9 +644,9 @@ verdict(
     values=dict(approach_rate_ratio=rates[-1] / rates[0]),
     why="the compliance's rate is constant, but the approach's cannot be: Lee & Radok "
     "give delta = a^2 / R with a^3 proportional to J(t) = (1 + t / tau) / G, so delta "
-    "grows as (1 + t / tau)^(2/3), whose rate at 6 tau is 7^(-1/3) = 0.52 x the initial "
-    f"(computed: x{rates[-1] / rates[0]:.2f}). The paper's statement holds for J(t), not "
-    "for the indentation",
+    "grows as (1 + t / tau)^(2/3), whose rate at 6 tau is 7^(-1/3) = 0.52 x the "
+    f"initial (computed: x{rates[-1] / rates[0]:.2f}). The paper's statement holds for "
+    "J(t), not for the indentation",
 )
 r6, c6 = peak_position(scene, sol, -1)
 verdict(
@@ -674,8 +683,8 @@ verdict(
     "transient edge spikes, Hertz-like after a long time",
     "creep (final / initial approach), largest edge rise over time and at 600 s",
     pm[1] < 0.01 and fi[1] > 0.02 and fi[2] < 0.5 * fi[1],
-    f"PMMA x{pm[0]:.2f}, rise {pm[1]:.3f}; fictitious x{fi[0]:.2f}, rise {fi[1]:.3f} at "
-    f"{fi[3]:.0f} s, {fi[2]:.3f} at 600 s",
+    f"PMMA x{pm[0]:.2f}, rise {pm[1]:.3f}; fictitious x{fi[0]:.2f}, rise {fi[1]:.3f} "
+    f"at {fi[3]:.0f} s, {fi[2]:.3f} at 600 s",
     values=dict(pmma_rise=pm[1], fict_rise=fi[1], fict_rise_end=fi[2]),
 )
 
@@ -805,7 +814,8 @@ verdict(
     ", ".join(f"ratio {r}: {d[0]:.2f}, centre sticks {d[1]}" for r, d in disc.items()),
     values={f"disc_fill_{r}": d[0] for r, d in disc.items()},
 )
-grow = {r: (o.stick[-1].sum() / o.stick[0].sum(), o.contact[-1].sum() / o.contact[0].sum())
+grow = {r: (o.stick[-1].sum() / o.stick[0].sum(),
+            o.contact[-1].sum() / o.contact[0].sum())
         for r, (s, o) in normal_only.items()}
 verdict(
     "Fig. 15a", "stick and contact areas grow with time, more for the higher ratio",
@@ -825,7 +835,8 @@ verdict(
     f"ratio 3: {o3.stick_ratio.min():.3f}-{o3.stick_ratio.max():.3f}, ratio 10: "
     f"{o10.stick_ratio.min():.3f}-{o10.stick_ratio.max():.3f} (exact in the limit: the "
     "correspondence above)",
-    values=dict(spread=spread, stick_3=o3.stick_ratio[-1], stick_10=o10.stick_ratio[-1]),
+    values=dict(spread=spread, stick_3=o3.stick_ratio[-1],
+                stick_10=o10.stick_ratio[-1]),
 )
 
 # %% [markdown]
@@ -849,7 +860,8 @@ fig, ax = plt.subplots(1, 3, figsize=(14, 3.6))
 for name, (scene, sol) in cases.items():
     ax[0].plot(sol.times / TAU, sol.tangential_force[:, 0] / (MU * W), ".-",
                label=f"{name.upper()} F_x / mu W")
-    ax[0].plot(sol.times / TAU, sol.stick_ratio, "--", label=f"{name.upper()} stick ratio")
+    ax[0].plot(sol.times / TAU, sol.stick_ratio, "--",
+               label=f"{name.upper()} stick ratio")
     ax[1].plot(sol.times / TAU, sol.stick.sum(axis=(1, 2)) / N**2, ".-",
                label=f"{name.upper()} A_s / I_p")
     ax[1].plot(sol.times / TAU, sol.contact.sum(axis=(1, 2)) / N**2, "--",
@@ -888,7 +900,8 @@ for f in f_probe:
     probe[float(f)] = (s, solve(s, f"one elastic step, F_x = {f:.3f} mu W"))
 elastic_stick = {f: float(o.stick_ratio[0]) for f, (s, o) in probe.items()}
 ax[2].plot(f_dc, dc.stick_ratio, ".-", label="DC over time")
-ax[2].plot(list(elastic_stick), list(elastic_stick.values()), "s", label="one elastic step")
+ax[2].plot(list(elastic_stick), list(elastic_stick.values()), "s",
+           label="one elastic step")
 ax[2].set(xlabel="F_x / mu W", ylabel="stick ratio", title="cause of Fig. 16a")
 for a in ax:
     a.legend(fontsize=7)
@@ -919,7 +932,8 @@ verdict(
     "one of its current load ratio, higher than LC's; the paper's 'due to the relaxed "
     "load ... lower' has the effect of the relaxation the wrong way round",
 )
-as_growth = {k: o.stick[-1].sum() / max(o.stick[0].sum(), 1) for k, (s, o) in cases.items()}
+as_growth = {k: o.stick[-1].sum() / max(o.stick[0].sum(), 1)
+             for k, (s, o) in cases.items()}
 ac_growth = {k: o.contact[-1].sum() / o.contact[0].sum() for k, (s, o) in cases.items()}
 verdict(
     "Fig. 16b", "the stick area grows faster in DC, the contact area faster in LC",
@@ -936,7 +950,8 @@ for axrow, (name, (scene, sol)) in zip(axes, cases.items()):
     for a, k in zip(axrow, picks_of(sol)):
         stick_map(a, sol, k, f"{name.upper()} t = {sol.times[k] / TAU:.2f} tau")
 show(fig, "fig17_stick_maps")
-cen = {k: (stick_centroid(s, o, 0), stick_centroid(s, o, -1)) for k, (s, o) in cases.items()}
+cen = {k: (stick_centroid(s, o, 0), stick_centroid(s, o, -1))
+       for k, (s, o) in cases.items()}
 verdict(
     "Fig. 17", "the LC stick zone keeps its shape and place; the DC one moves from the "
     "rear towards the front",
@@ -944,7 +959,8 @@ verdict(
     abs(cen["lc"][1] - cen["lc"][0]) < 0.05 and cen["dc"][1] - cen["dc"][0] > 0.05,
     f"LC {cen['lc'][0]:+.2f} -> {cen['lc'][1]:+.2f}; DC {cen['dc'][0]:+.2f} -> "
     f"{cen['dc'][1]:+.2f}",
-    values=dict(lc_shift=cen["lc"][1] - cen["lc"][0], dc_shift=cen["dc"][1] - cen["dc"][0]),
+    values=dict(lc_shift=cen["lc"][1] - cen["lc"][0],
+                dc_shift=cen["dc"][1] - cen["dc"][0]),
 )
 
 
@@ -963,7 +979,8 @@ for name, (scene, sol) in cases.items():
     style = "-" if name == "lc" else "o"
     for k in picks_of(sol, 3):
         xs = np.asarray(scene.grid.x) / A0
-        ax[0].plot(xs, row(sol.pressure[k]) / P0, style, ms=2, label=f"{name} {sol.times[k] / TAU:.1f}")
+        ax[0].plot(xs, row(sol.pressure[k]) / P0, style, ms=2,
+                   label=f"{name} {sol.times[k] / TAU:.1f}")
         ax[1].plot(xs, row(sol.shear[k, 0]) / P0, style, ms=2)
         ax[2].plot(xs, sol.shear[k, 1, N // 2, :] / P0, style, ms=2)
 ax[0].set(xlabel="x / a0", ylabel="p / p0", title="Fig. 18")
@@ -971,12 +988,14 @@ ax[1].set(xlabel="x / a0", ylabel="q_x / p0", title="Fig. 19a")
 ax[2].set(xlabel="y / a0", ylabel="q_y / p0", title="Fig. 19b")
 ax[0].legend(fontsize=6)
 show(fig, "fig18_19_tractions")
-p_lc, p_dc = halves(lc_scene, lc, lc.pressure[-1]), halves(dc_scene, dc, dc.pressure[-1])
+p_lc, p_dc = (halves(lc_scene, lc, lc.pressure[-1]),
+              halves(dc_scene, dc, dc.pressure[-1]))
 pk = dc.pressure[-1].max() / lc.pressure[-1].max()
 cell = float(lc_scene.grid.spacing[0]) / radius(lc_scene, lc, -1)
 verdict(
     "Fig. 18 (rear/front)", "DC has lower pressure at the rear and higher at the front "
-    "than LC", "at the end: mean pressure on the rear and front contact halves of y = 0",
+    "than LC",
+    "at the end: mean pressure on the rear and front contact halves of y = 0",
     p_dc[0] < p_lc[0] and p_dc[1] > p_lc[1],
     f"rear {p_dc[0] / P0:.4f} vs {p_lc[0] / P0:.4f}, front {p_dc[1] / P0:.4f} vs "
     f"{p_lc[1] / P0:.4f} p0 (DC vs LC)",
@@ -1000,7 +1019,8 @@ verdict(
     "(x = -0.007 a). The paper's higher DC peak is not reproduced at any grid we ran"
     if not peak_holds else None,
 )
-q_lc, q_dc = halves(lc_scene, lc, lc.shear[-1, 0]), halves(dc_scene, dc, dc.shear[-1, 0])
+q_lc, q_dc = (halves(lc_scene, lc, lc.shear[-1, 0]),
+              halves(dc_scene, dc, dc.shear[-1, 0]))
 m_lc = halves(lc_scene, lc, np.abs(lc.shear[-1, 0]))
 m_dc = halves(dc_scene, dc, np.abs(dc.shear[-1, 0]))
 fx_end = dc.tangential_force[-1, 0] / lc.tangential_force[-1, 0]
@@ -1011,23 +1031,24 @@ verdict(
     "at the end: mean |q_x| (and signed q_x) on the rear and front contact halves of "
     "y = 0, DC vs LC",
     magnitude,
-    f"|q_x|: rear {m_dc[0] / P0:.4f} vs {m_lc[0] / P0:.4f}, front {m_dc[1] / P0:.4f} vs "
-    f"{m_lc[1] / P0:.4f} p0; signed: rear {q_dc[0] / P0:+.4f} vs {q_lc[0] / P0:+.4f}, "
-    f"front {q_dc[1] / P0:+.4f} vs {q_lc[1] / P0:+.4f} (DC vs LC)",
+    f"|q_x|: rear {m_dc[0] / P0:.4f} vs {m_lc[0] / P0:.4f}, front {m_dc[1] / P0:.4f} "
+    f"vs {m_lc[1] / P0:.4f} p0; signed: rear {q_dc[0] / P0:+.4f} vs "
+    f"{q_lc[0] / P0:+.4f}, front {q_dc[1] / P0:+.4f} vs {q_lc[1] / P0:+.4f} (DC vs LC)",
     "DC higher at the rear, lower at the front",
     values=dict(rear_abs_ratio=m_dc[0] / m_lc[0], front_abs_ratio=m_dc[1] / m_lc[1],
-                rear_signed_dc=q_dc[0] / P0, rear_signed_lc=q_lc[0] / P0, fx_ratio=fx_end),
+                rear_signed_dc=q_dc[0] / P0, rear_signed_lc=q_lc[0] / P0,
+                fx_ratio=fx_end),
     why=None if magnitude else "neither the magnitude nor the signed q_x shows the "
     "paper's pattern at this grid",
 )
 if magnitude and not signed:
     print(
-        "  note: in MAGNITUDE, as the paper says. The signed q_x is lower in DC on both "
-        "halves, because q_x is negative over most of the rear: the coupling's friction "
-        "points outward (away from the centre) under the pressure, against F_x at the "
-        f"rear; DC's F_x has relaxed to {fx_end:.2f} x LC's, so the outward (negative) "
-        "rear shear dominates more there. 'Higher q_x at the rear' is |q_x|: the "
-        "paper's figure plots magnitudes, or the opposite sign at the rear"
+        "  note: in MAGNITUDE, as the paper says. The signed q_x is lower in DC on "
+        "both halves, because q_x is negative over most of the rear: the coupling's "
+        "friction points outward (away from the centre) under the pressure, against "
+        f"F_x at the rear; DC's F_x has relaxed to {fx_end:.2f} x LC's, so the outward "
+        "(negative) rear shear dominates more there. 'Higher q_x at the rear' is "
+        "|q_x|: the paper's figure plots magnitudes, or the opposite sign at the rear"
     )
 
 # %% [markdown]
@@ -1043,9 +1064,12 @@ for ratio in (3, 5, 10):
     scene = P.dc(ratio=ratio, n=N, steps=steps(81), duration=duration(2.0, 0.5))
     sol = solve(scene, f"Fig. 20, ratio {ratio}")
     f = sol.tangential_force[:, 0] / (MU * sol.normal_force)
-    f20[ratio] = (sol.stick_ratio[-1], f[-1], sol.contact[-1].sum() / sol.contact[0].sum())
-    ax[0].plot(sol.times / TAU, sol.contact.sum(axis=(1, 2)) / N**2, ".-", label=f"A_c, ratio {ratio}")
-    ax[0].plot(sol.times / TAU, sol.stick.sum(axis=(1, 2)) / N**2, "--", label=f"A_s, ratio {ratio}")
+    f20[ratio] = (sol.stick_ratio[-1], f[-1],
+                  sol.contact[-1].sum() / sol.contact[0].sum())
+    ax[0].plot(sol.times / TAU, sol.contact.sum(axis=(1, 2)) / N**2, ".-",
+               label=f"A_c, ratio {ratio}")
+    ax[0].plot(sol.times / TAU, sol.stick.sum(axis=(1, 2)) / N**2, "--",
+               label=f"A_s, ratio {ratio}")
     ax[1].plot(sol.times / TAU, sol.stick_ratio, ".-", label=f"stick, ratio {ratio}")
     ax[1].plot(sol.times / TAU, f, ":", label=f"F_x / mu W, ratio {ratio}")
 ax[0].set(xlabel="t / tau", title="Fig. 20a")
@@ -1141,23 +1165,29 @@ show(fig, "fig22_tractions")
 mag_rel = rel.pressure[-1].max() / rel.pressure[0].max()
 mag_dc = dc.pressure[-1].max() / dc.pressure[0].max()
 # The shape: each step's tractions over its own load against the first step's.
-shape_rel = max(np.abs(rel.pressure[k] / rel.normal_force[k] - rel.pressure[0] / rel.normal_force[0]).max()
-                for k in range(len(rel.times))) / (rel.pressure[0] / rel.normal_force[0]).max()
-shape_dc = max(np.abs(dc.pressure[k] / dc.normal_force[k] - dc.pressure[0] / dc.normal_force[0]).max()
-               for k in range(len(dc.times))) / (dc.pressure[0] / dc.normal_force[0]).max()
+shape_rel = (max(np.abs(rel.pressure[k] / rel.normal_force[k]
+                        - rel.pressure[0] / rel.normal_force[0]).max()
+                 for k in range(len(rel.times)))
+             / (rel.pressure[0] / rel.normal_force[0]).max())
+shape_dc = (max(np.abs(dc.pressure[k] / dc.normal_force[k]
+                       - dc.pressure[0] / dc.normal_force[0]).max()
+                for k in range(len(dc.times)))
+            / (dc.pressure[0] / dc.normal_force[0]).max())
 g = np.asarray(scene.material.relaxation(jnp.asarray([0.0, float(rel.times[-1])])))
 verdict(
-    "Fig. 22", "the relaxation case's tractions vary insignificantly with time compared "
-    "with the creep case's",
+    "Fig. 22", "the relaxation case's tractions vary insignificantly with time "
+    "compared with the creep case's",
     "p_max at the end over at t = 0; largest change of p / W (the shape) over time",
     mag_rel > 0.8,
     f"relaxation: magnitude x{mag_rel:.3f} (W {rel.normal_force[0]:.3f} -> "
     f"{rel.normal_force[-1]:.3f} N), shape change {shape_rel:.1e}; creep: magnitude "
     f"x{mag_dc:.3f}, shape change {shape_dc:.1e}",
     "insignificant change",
-    values=dict(mag_rel=mag_rel, mag_creep=mag_dc, shape_rel=shape_rel, shape_creep=shape_dc),
-    why=f"with both displacements held every traction scales with one relaxation factor "
-    f"per step (G(t) / G(0) = {g[1] / g[0]:.3f} at {rel.times[-1] / TAU:.1f} tau; its "
+    values=dict(mag_rel=mag_rel, mag_creep=mag_dc, shape_rel=shape_rel,
+                shape_creep=shape_dc),
+    why=f"with both displacements held every traction scales with one relaxation "
+    f"factor per step (G(t) / G(0) = {g[1] / g[0]:.3f} at {rel.times[-1] / TAU:.1f} "
+    f"tau; its "
     "discrete counterpart gives W's fall), so the MAGNITUDE falls with the modulus, "
     f"far more than in the creep case (x{mag_dc:.3f}), while the SHAPE is exactly "
     f"fixed ({shape_rel:.0e} against {shape_dc:.0e} for creep). The paper's statement "
@@ -1230,10 +1260,12 @@ for (c, r, v), s in found.items():
     good = ok(s)
     fx, wn = np.abs(s.tangential_force[good, 0]), s.normal_force[good]
     f_total = np.hypot(*s.tangential_force[good].T)
-    check((f_total <= MU * wn * (1 + 1e-6)).all(), f"{c}, ratio {r}, v {v:g}: |F| <= mu W")
+    check((f_total <= MU * wn * (1 + 1e-6)).all(),
+          f"{c}, ratio {r}, v {v:g}: |F| <= mu W")
 check(any(s.sliding.any() for s in found.values()), "gross sliding reached")
 semi = {k: s for k, s in found.items() if k[0] == "x"}
-early = {k: int(np.sum(np.diff(s.stick_ratio[: (slide_index(s) or len(s.times))]) > 1e-12))
+early = {k: int(np.sum(np.diff(s.stick_ratio[: (slide_index(s) or len(s.times))])
+                       > 1e-12))
          for k, s in semi.items()}
 verdict(
     "Fig. 23a", "oscillating stick ratios early in the semi-coupled runs",
@@ -1260,7 +1292,8 @@ verdict(
     "F_x = mu W once sliding (semi-coupled)",
     "first sliding time / tau per ratio and rate; F_x / (mu W) a step after",
     faster and fluid and mu_w and np.allclose(mu_w, 1, atol=1e-4),
-    ", ".join(f"ratio {r}, {v * 1e6:.0f} um/s: {t / TAU:.3f}" for (c, r, v), t in ts.items())
+    ", ".join(f"ratio {r}, {v * 1e6:.0f} um/s: {t / TAU:.3f}"
+              for (c, r, v), t in ts.items())
     + f"; F_x / mu W after sliding {min(mu_w):.5f}-{max(mu_w):.5f}",
     values={f"slide_ratio{r}_v{v * 1e6:.0f}": t / TAU for (c, r, v), t in ts.items()},
 )
@@ -1305,7 +1338,8 @@ def ending(sol):
     end, large for a steep one."""
     k = slide_index(sol)
     dx = sol.tangential_displacement[: k + 1, 0]
-    return float(np.interp(0.9 * dx[-1], dx, sol.stick_ratio[: k + 1]) / sol.stick_ratio[0])
+    return float(np.interp(0.9 * dx[-1], dx, sol.stick_ratio[: k + 1])
+                 / sol.stick_ratio[0])
 
 
 fig, ax = plt.subplots(1, 3, figsize=(15, 3.8))
@@ -1315,12 +1349,15 @@ for (speed, c, law, nt), s in study.items():
                    "-" if law == "total" else ":", label=f"{c}, {law}")
     if law == "total" and c == "full":
         ax[1].plot(s.tangential_displacement[:, 0] * 1e6, s.stick_ratio,
-                   ".-" if speed == "slow" else "x-", ms=3, label=f"{speed}, {nt} points")
+                   ".-" if speed == "slow" else "x-", ms=3,
+                   label=f"{speed}, {nt} points")
     if law == "total" and nt == STEP_SET[-1] and speed == "fast":
-        ax[2].plot(s.tangential_displacement[:, 0] * 1e6, s.stick_ratio, label=f"{c}, fast")
+        ax[2].plot(s.tangential_displacement[:, 0] * 1e6, s.stick_ratio,
+                   label=f"{c}, fast")
 ax[0].set(xlabel="delta_x [um]", ylabel="stick ratio",
           title=f"Fig. 24a (ratio 10, {RATES[0] * 1e6:.0f} um/s)")
-ax[1].set(xlabel="delta_x [um]", ylabel="stick ratio", title="Fig. 24b: time steps (full)")
+ax[1].set(xlabel="delta_x [um]", ylabel="stick ratio",
+          title="Fig. 24b: time steps (full)")
 ax[2].set(xlabel="delta_x [um]", title=f"{FAST * 1e6:.0f} um/s: sliding while relaxing")
 for a in ax:
     a.legend(fontsize=6)
@@ -1342,7 +1379,8 @@ f_semi = semi0.tangential_force[ks, 0] / (MU * semi0.normal_force[ks])
 verdict(
     "Fig. 24a (time, load)", "fully coupled, gross sliding comes sooner and at a lower "
     "tangential load than semi-coupled",
-    f"first sliding time / tau and F_x / (mu W) there, full vs semi ({STEP_SET[0]} points)",
+    "first sliding time / tau and F_x / (mu W) there, full vs semi "
+    f"({STEP_SET[0]} points)",
     slide_time(full0) <= slide_time(semi0) and f_full < f_semi,
     f"{slide_time(full0) / TAU:.3f} vs {slide_time(semi0) / TAU:.3f} tau; F_x / mu W "
     f"{f_full:.3f} vs {f_semi:.3f}",
@@ -1364,35 +1402,41 @@ verdict(
     f"largest one-step drop, {hi} over {lo} points",
     abrupt,
     f"c before sliding / c(0) at {hi} points: "
-    f"{T['slow', 'full', 'total', hi][1] / T['slow', 'full', 'total', hi][0]:.1%} (slow), "
-    f"{T['fast', 'full', 'total', hi][1] / T['fast', 'full', 'total', hi][0]:.1%} (fast); "
+    f"{T['slow', 'full', 'total', hi][1] / T['slow', 'full', 'total', hi][0]:.1%} "
+    "(slow), "
+    f"{T['fast', 'full', 'total', hi][1] / T['fast', 'full', 'total', hi][0]:.1%} "
+    "(fast); "
     f"largest drop x{shrink['slow']:.2f} (slow), x{shrink['fast']:.2f} (fast) from "
     f"{lo} to {hi} points",
     "a jump from a relatively high value to zero, unchanged by smaller steps",
     values=dict(crit_over_c0=crit_rel, shrink_slow=shrink["slow"],
                 shrink_fast=shrink["fast"],
-                drop_coarse=T["slow", "full", "total", lo][2] / T["slow", "full", "total", lo][0],
-                drop_fine=T["slow", "full", "total", hi][2] / T["slow", "full", "total", hi][0],
+                drop_coarse=(T["slow", "full", "total", lo][2]
+                             / T["slow", "full", "total", lo][0]),
+                drop_fine=(T["slow", "full", "total", hi][2]
+                           / T["slow", "full", "total", hi][0]),
                 ending_slow=T["slow", "full", "total", hi][4],
                 ending_fast=T["fast", "full", "total", hi][4],
                 ending_fast_semi=T["fast", "x", "total", hi][4],
                 ending_fast_none=T["fast", "none", "total", hi][4],
                 crit_incremental=T["slow", "full", "incremental", lo][1]),
-    why="no jump in any computation: as the step is refined the last stick ratio before "
-    "sliding goes to zero ("
+    why="no jump in any computation: as the step is refined the last stick ratio "
+    "before sliding goes to zero ("
     + ", ".join(f"{T['slow', 'full', 'total', nt][1]:.4f}" for nt in STEP_SET)
-    + f" slow; " + ", ".join(f"{T['fast', 'full', 'total', nt][1]:.4f}" for nt in STEP_SET)
+    + " slow; "
+    + ", ".join(f"{T['fast', 'full', 'total', nt][1]:.4f}" for nt in STEP_SET)
     + f" fast, at {', '.join(map(str, STEP_SET))} points) and the largest one-step "
-    f"drop shrinks with the step (x{shrink['slow']:.2f} and x{shrink['fast']:.2f} for a "
-    f"{(hi - 1) // (lo - 1)}x finer step): the stick ratio is continuous in time, for the "
-    "incremental slip law too (last value "
-    f"{T['slow', 'full', 'incremental', lo][1]:.4f}). What IS there: when gross sliding "
-    f"comes while the modulus relaxes ({FAST * 1e6:.0f} um/s, sliding at "
-    f"{T['fast', 'full', 'total', hi][3]:.2f} tau; the load relaxes with it under the held "
-    "approach), the coupled stick ratio stays high until late and falls over the last "
-    f"tenth of the way: at 90 % of the sliding displacement it is still "
+    f"drop shrinks with the step (x{shrink['slow']:.2f} and x{shrink['fast']:.2f} "
+    f"for a {(hi - 1) // (lo - 1)}x finer step): the stick ratio is continuous in "
+    "time, for the incremental slip law too (last value "
+    f"{T['slow', 'full', 'incremental', lo][1]:.4f}). What IS there: when gross "
+    f"sliding comes while the modulus relaxes ({FAST * 1e6:.0f} um/s, sliding at "
+    f"{T['fast', 'full', 'total', hi][3]:.2f} tau; the load relaxes with it under the "
+    "held approach), the coupled stick ratio stays high until late and falls over the "
+    f"last tenth of the way: at 90 % of the sliding displacement it is still "
     f"{T['fast', 'full', 'total', hi][4]:.2f} c(0) fully coupled ("
-    f"{T['fast', 'x', 'total', hi][4]:.2f} semi, {T['fast', 'none', 'total', hi][4]:.2f} "
+    f"{T['fast', 'x', 'total', hi][4]:.2f} semi, "
+    f"{T['fast', 'none', 'total', hi][4]:.2f} "
     f"uncoupled; a linear decline gives 0.10), against "
     f"{T['slow', 'full', 'total', hi][4]:.2f} at {RATES[0] * 1e6:.0f} um/s, sliding at "
     f"{T['slow', 'full', 'total', hi][3]:.2f} tau when the material is steady. With a "
@@ -1411,7 +1455,8 @@ verdict(
     values=dict(spread=(max(c24b) - min(c24b)) / min(c24b)),
     why="the sliding time moves by more than one coarse step as the step is refined: "
     "at this grid the last cells of the stick zone are few, and whether they go at one "
-    "step or the next shifts the first sliding step" if (max(c24b) - min(c24b)) / min(c24b) >= 0.15 else None,
+    "step or the next shifts the first sliding step"
+    if (max(c24b) - min(c24b)) / min(c24b) >= 0.15 else None,
 )
 
 # %% [markdown]
@@ -1429,7 +1474,8 @@ fig, ax = plt.subplots(1, 2, figsize=(11, 3.8))
 for rate in RATES:
     s = found["full", 10, rate]
     crit25[rate] = (slide_time(s) / TAU, transition(s)[1], ending(s))
-    ax[0].plot(s.times / TAU, s.stick_ratio, ".-", ms=3, label=f"v = {rate * 1e6:.0f} um/s")
+    ax[0].plot(s.times / TAU, s.stick_ratio, ".-", ms=3,
+               label=f"v = {rate * 1e6:.0f} um/s")
 # the same rates at twice the points: the critical value against the step
 fine25 = {}
 for rate in RATES[-2:]:
@@ -1471,12 +1517,13 @@ verdict(
 e_slow = T["slow", "full", "total", STEP_SET[-1]][4]
 e_fast = T["fast", "full", "total", STEP_SET[-1]][4]
 verdict(
-    "Fig. 25a (slow rate)", f"at v = 1e3 um/s, sliding when the material is steady, "
+    "Fig. 25a (slow rate)", "at v = 1e3 um/s, sliding when the material is steady, "
     "the transition is less abrupt",
     "stick ratio at 90 % of the sliding displacement over c(0), full coupling, "
     f"{STEP_SET[-1]} points: {RATES[0] * 1e6:.0f} vs {FAST * 1e6:.0f} um/s",
     e_slow < e_fast,
-    f"{e_slow:.3f} (sliding at {T['slow', 'full', 'total', STEP_SET[-1]][3]:.2f} tau) vs "
+    f"{e_slow:.3f} (sliding at {T['slow', 'full', 'total', STEP_SET[-1]][3]:.2f} tau) "
+    "vs "
     f"{e_fast:.3f} (at {T['fast', 'full', 'total', STEP_SET[-1]][3]:.2f} tau)",
     values=dict(ending_slow=e_slow, ending_fast=e_fast),
 )
@@ -1505,7 +1552,8 @@ creep = solve(
 )
 relax = found["full", 10, RATES[0]]
 fig, ax = plt.subplots(figsize=(6, 3.8))
-ax.plot(relax.times / TAU, relax.stick_ratio, ".-", label="held displacement (relaxation)")
+ax.plot(relax.times / TAU, relax.stick_ratio, ".-",
+        label="held displacement (relaxation)")
 ax.plot(creep.times / TAU, creep.stick_ratio, ".-", label="held load (creep)")
 ax.set(xlabel="t / tau", ylabel="stick ratio", title="Fig. 26")
 ax.legend(fontsize=7)
@@ -1516,7 +1564,8 @@ verdict(
     "(creep)", "first sliding time / tau",
     t_relax < t_creep or (np.isfinite(t_relax) and not np.isfinite(t_creep)),
     f"relaxation {t_relax / TAU:.3f} tau, creep "
-    + (f"{t_creep / TAU:.3f} tau" if np.isfinite(t_creep) else f"not within {WINDOW:g} tau")
+    + (f"{t_creep / TAU:.3f} tau" if np.isfinite(t_creep)
+       else f"not within {WINDOW:g} tau")
     + f" (W there: {relax.normal_force[slide_index(relax) or -1]:.4f} vs "
     f"{creep.normal_force[-1]:.3f} N)",
     values=dict(t_relax=t_relax / TAU),
@@ -1525,7 +1574,8 @@ fig, axes = plt.subplots(2, 4, figsize=(12, 6))
 kmax = min(slide_index(relax) or NT - 1, NT - 1)
 k27 = np.linspace(0, kmax, 4).round().astype(int)
 paths = {}
-for axrow, (name, s, sc) in zip(axes, (("creep", creep, None), ("relaxation", relax, None))):
+for axrow, (name, s, sc) in zip(axes, (("creep", creep, None),
+                                       ("relaxation", relax, None))):
     for a, k in zip(axrow, k27):
         stick_map(a, s, k, f"{name}, t = {s.times[k] / TAU:.2f} tau")
     paths[name] = [s.stick[k].sum() / max(s.contact[k].sum(), 1) for k in k27]
@@ -1598,8 +1648,8 @@ for a, (label, (scene, sol, k)) in zip(axes, cases_sub.items()):
     vm_peak[label + ", with shear"] = friction_peak
     a.imshow(vm, origin="upper", aspect="auto", extent=[
         float(scene.grid.x[0]) / A0, float(scene.grid.x[-1]) / A0, depths[-1] / A0, 0])
-    a.set(title=f"von Mises, {label}, t = {sol.times[k] / TAU:.2f} tau", xlabel="x / a0",
-          ylabel="z / a0")
+    a.set(title=f"von Mises, {label}, t = {sol.times[k] / TAU:.2f} tau",
+          xlabel="x / a0", ylabel="z / a0")
 show(fig, "conclusions_subsurface")
 for label, (r, z) in vm_peak.items():
     print(f"  von Mises maximum, {label}: r = {r:.2f} a, z = {z:.2f} a")
@@ -1609,8 +1659,8 @@ r3 = vm_peak["ratio 3, coupled"]
 verdict(
     "Conclusions (stress)", "the edge spikes of a fluid-like material shift the peak "
     "subsurface stress towards the contact edge, as far as the pressure is skewed",
-    "position (r / a, z / a) of the von Mises maximum under the pressure alone: ratio 3 "
-    "and 10 coupled (Figs. 13-15) and the most skewed ratio-10 pressure of Fig. 8",
+    "position (r / a, z / a) of the von Mises maximum under the pressure alone: ratio "
+    "3 and 10 coupled (Figs. 13-15) and the most skewed ratio-10 pressure of Fig. 8",
     r8[0] > r3[0] + 0.1 or r10[0] > r3[0] + 0.1,
     f"ratio 3: r = {r3[0]:.2f} a, z = {r3[1]:.2f} a; ratio 10 coupled (edge rise "
     f"{rise13[10]:.2f} p_max, the centre the maximum): r = {r10[0]:.2f} a, z = "
@@ -1637,7 +1687,8 @@ for v in VERDICTS:
 n_hold = sum(v["verdict"] == "holds" for v in VERDICTS)
 print(f"\n{n_hold} hold, {len(VERDICTS) - n_hold} differ, at {N}x{N} ({SIZE}); "
       f"{time.perf_counter() - START:.0f} s")
-unexplained = [v["study"] for v in VERDICTS if v["verdict"] == "differs" and not v["why"]]
+unexplained = [v["study"] for v in VERDICTS
+               if v["verdict"] == "differs" and not v["why"]]
 print(f"differences without a written cause at this size: {unexplained or 'none'}")
 if not CI:  # at CI size (16^2, 9 points) the numbers are a smoke test
     check(not unexplained, "every difference has its cause written beside it")

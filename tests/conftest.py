@@ -1,5 +1,6 @@
 import os
 
+
 # Two test processes (pytest-xdist, pyproject addopts): on a GPU, neither may take
 # most of its memory up front.
 os.environ.setdefault("XLA_PYTHON_CLIENT_PREALLOCATE", "false")
@@ -23,6 +24,7 @@ import tempfile  # noqa: E402
 import pytest  # noqa: E402
 
 from jaxcontact import enable_compilation_cache  # noqa: E402
+
 
 _SHARED_CACHE = "JAXCONTACT_TEST_CACHE_DIR"
 _FULL_OPTIMIZATION = "JAXCONTACT_TEST_FULL_OPTIMIZATION"

@@ -22,7 +22,7 @@ CREEP = os.path.join(DATA, "fmt-jpk-cc_pr14-polymergel-2021.06.30.jpk-force")
 RELAX = os.path.join(DATA, "fmt-jpk-sr_cell1-0008.jpk-force")
 
 
-# ---- synthetic curves -----------------------------------------------------------------
+# ---- synthetic curves ----------------------------------------------------------------
 
 
 class FakeCurve:
@@ -42,7 +42,8 @@ def synthetic(noise=0.0, k=0.05, seed=0, tilt=0.0):
     Hertz force F = b delta^(3/2) (b chosen for ~10 nN at 4 um; the deflection F / k is
     solved for exactly), a 1 s hold at constant height with the force relaxing to 60 %
     (so the depth grows by the released deflection), a 0.5 s retract; baseline 0.4 nN
-    (plus `tilt` [N/m] x travel). Returns the curve and the true depth of each sample."""
+    (plus `tilt` [N/m] x travel). Returns the curve and the true depth of each
+    sample."""
     rng = np.random.default_rng(seed)
     b, xc, h0 = 10e-9 / 4e-6**1.5, 6e-6, 50e-6
     # approach: travel x uniform; delta solves x - xc = delta + b delta^1.5 / k
@@ -75,7 +76,8 @@ def synthetic(noise=0.0, k=0.05, seed=0, tilt=0.0):
     force = np.concatenate([f_app, f_hold, f_r]) + 0.4e-9 + tilt * travel
     force = force + noise * 10e-9 * rng.standard_normal(force.shape)
     depth = np.concatenate([delta, d_hold, d_r])
-    time = np.concatenate([np.linspace(0, 1, 1000), 1 + th, 2 + np.linspace(0, 0.5, 501)[1:]])
+    time = np.concatenate([np.linspace(0, 1, 1000), 1 + th,
+                           2 + np.linspace(0, 0.5, 501)[1:]])
     segment = np.concatenate([np.zeros(1000, int), np.ones(1000, int), np.full(500, 2)])
     columns = {"time": time, "force": force, "height (measured)": h0 - travel,
                "segment": segment}
@@ -164,7 +166,8 @@ def test_read_afm_bad_input():
         jc.read_afm(FakeCurve(cols, curve.metadata))
     cols["deflection"] = curve["force"] / 0.05
     ok = jc.read_afm(FakeCurve(cols, curve.metadata))  # F = k * deflection
-    np.testing.assert_allclose(ok.force, jc.read_afm(curve).force, rtol=1e-12, atol=1e-21)
+    np.testing.assert_allclose(ok.force, jc.read_afm(curve).force, rtol=1e-12,
+                               atol=1e-21)
     with pytest.raises(ValueError, match="spring constant"):
         jc.read_afm(FakeCurve(cols, {}))
     flat = dict(curve._c, force=np.zeros_like(curve["force"]))
@@ -304,7 +307,8 @@ def test_fit_command_on_the_relaxation_file_and_the_radius_scaling(tmp_path, cap
         assert js["contact"] == "viscoelastic"
         # --tau-range auto: 1e-3 x the shortest binned step to the data's duration
         lo, hi = js["tau_bounds_s"]
-        assert 0 < lo < 1e-2 and 15 < hi < 32  # s: bin means of a 1 s approach, 30 s hold
+        # s: bin means of a 1 s approach, 30 s hold
+        assert 0 < lo < 1e-2 and 15 < hi < 32
         assert all(lo <= e["value"] <= hi for e in js["parameters"]["tau_s"])
         corr = np.array(js["log_parameter_correlation"], float)
         assert corr.shape == (3, 3) and np.allclose(np.diag(corr), 1)
@@ -328,7 +332,8 @@ def test_refits_of_the_relaxation_file_from_two_starts_agree():
     template = c.scene_template(5e-6, n=8)
     a = jc.fit_prony(data, template, 1)
     m = a.material
-    start = jc.Prony(3 * float(m.g_inf), np.asarray(m.g) / 3, np.asarray(m.tau) * 3, 0.5)
+    start = jc.Prony(3 * float(m.g_inf), np.asarray(m.g) / 3, np.asarray(m.tau) * 3,
+                     0.5)
     b = jc.fit_prony(data, template, 1, init=start)
     assert a.converged and b.converged, (a.message, b.message)
     pa = np.concatenate([[float(a.material.g_inf)], np.asarray(a.material.g),
@@ -493,7 +498,8 @@ def test_creep_file_hold_within_the_noise_at_64(tmp_path, capsys, monkeypatch):
                  "--samples", "40,100,8", "--segments", "approach,hold",
                  "--out", str(tmp_path)])
     capsys.readouterr()
-    js = json.loads((tmp_path / "fmt-jpk-cc_pr14-polymergel-2021.06.30_fit.json").read_text())
+    js = json.loads(
+        (tmp_path / "fmt-jpk-cc_pr14-polymergel-2021.06.30_fit.json").read_text())
     assert code == 0 and js["converged"], js.get("message")
     assert js["hold_residual_over_noise_raw"] <= 1.5, js["hold_residual_over_noise_raw"]
     assert js["discretisation_rms"] < js["noise_raw"]

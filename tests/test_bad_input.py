@@ -65,7 +65,8 @@ class TestGrid:
             (dict(shape=(8, 8), size=(-1.0, 1.0)), ValueError, ("size", "-1.")),
             (dict(shape=(8, 8), size=(1.0, 1.0, 1.0)), ValueError, ("size", "(3,)")),
             (dict(shape=(8, 8), size="1mm"), TypeError, ("size", "'1mm'")),
-            (dict(shape=(8, 8), size=1.0, periodic="yes"), TypeError, ("periodic", "'yes'")),
+            (dict(shape=(8, 8), size=1.0, periodic="yes"), TypeError,
+             ("periodic", "'yes'")),
         ],
     )
     def test_rejects(self, kwargs, exc, fragments):
@@ -107,8 +108,8 @@ class TestSurface:
 
     def test_shape_against_grid(self):
         # At the scene, and at solve_normal (indenter array vs grid).
-        raises(lambda: scene(indenter=np.zeros((4, 8))), ValueError, "indenter", "(4, 8)",
-               "(8, 8)")
+        raises(lambda: scene(indenter=np.zeros((4, 8))), ValueError, "indenter",
+               "(4, 8)", "(8, 8)")
         raises(
             lambda: jc.solve_normal(GRID, np.zeros((8, 4)), ELASTIC, force=1.0),
             ValueError, "(8, 4)", "(8, 8)",
@@ -129,13 +130,15 @@ class TestLoadPrograms:
         raises(lambda: cls(True), TypeError, f"{name} value", "True")
 
     def test_length_against_times(self):
-        raises(lambda: scene(normal=jc.Force(np.ones(4))), ValueError, "normal", "(4,)", "(3)")
+        raises(lambda: scene(normal=jc.Force(np.ones(4))), ValueError, "normal", "(4,)",
+               "(3)")
         raises(
             lambda: scene(x=jc.Displacement(np.ones(2)), friction=0.3),
             ValueError, "x", "(2,)",
         )
         raises(
-            lambda: scene(y=jc.Force(lambda t: jnp.ones(5)), friction=0.3, coupling="full"),
+            lambda: scene(y=jc.Force(lambda t: jnp.ones(5)), friction=0.3,
+                          coupling="full"),
             ValueError, "y", "(5,)",
         )
 
@@ -174,7 +177,8 @@ class TestScene:
         ],
     )
     def test_bad_times(self, times, fragments):
-        raises(lambda: scene(times=times, normal=jc.Force(0.01)), ValueError, *fragments)
+        raises(lambda: scene(times=times, normal=jc.Force(0.01)), ValueError,
+               *fragments)
 
     @pytest.mark.parametrize(
         "friction, exc, fragments",
@@ -219,20 +223,24 @@ class TestMaterials:
         "build, exc, fragments",
         [
             (lambda: jc.Elastic(0.0, 0.3), ValueError, ("shear_modulus", "0.0")),
-            (lambda: jc.Elastic(-1e6, 0.3), ValueError, ("shear_modulus", "-1000000.0")),
+            (lambda: jc.Elastic(-1e6, 0.3), ValueError,
+             ("shear_modulus", "-1000000.0")),
             (lambda: jc.Elastic(NAN, 0.3), ValueError, ("shear_modulus", "nan")),
-            (lambda: jc.Elastic(np.ones(2), 0.3), ValueError, ("shear_modulus", "(2,)")),
+            (lambda: jc.Elastic(np.ones(2), 0.3), ValueError,
+             ("shear_modulus", "(2,)")),
             (lambda: jc.Elastic(True, 0.3), TypeError, ("shear_modulus", "True")),
             (lambda: jc.Elastic("soft", 0.3), TypeError, ("shear_modulus", "'soft'")),
             (lambda: jc.Maxwell(1.0, 0.0, 0.3), ValueError, ("viscosity", "0.0")),
             (lambda: jc.Maxwell(1.0, -2.0, 0.3), ValueError, ("viscosity", "-2.0")),
             (lambda: jc.Maxwell(INF, 1.0, 0.3), ValueError, ("shear_modulus", "inf")),
-            (lambda: jc.Zener(1.0, 2.0, 1.0, 0.3), ValueError, ("mu_0", "2.0", "mu_inf")),
+            (lambda: jc.Zener(1.0, 2.0, 1.0, 0.3), ValueError,
+             ("mu_0", "2.0", "mu_inf")),
             (lambda: jc.Zener(1.0, 0.0, 1.0, 0.3), ValueError, ("mu_0", "0.0")),
             (lambda: jc.Zener(1.0, 0.5, 0.0, 0.3), ValueError, ("tau", "0.0")),
             (lambda: jc.Zener(1.0, 0.5, -1.0, 0.3), ValueError, ("tau", "-1.0")),
             (lambda: jc.Zener(1.0, 0.5, NAN, 0.3), ValueError, ("tau", "nan")),
-            (lambda: jc.Zener(np.ones(2), 0.5, 1.0, 0.3), ValueError, ("mu_inf", "(2,)")),
+            (lambda: jc.Zener(np.ones(2), 0.5, 1.0, 0.3), ValueError,
+             ("mu_inf", "(2,)")),
             (lambda: jc.Prony(1.0, [-1.0], [1.0], 0.3), ValueError, ("g", "-1.")),
             (lambda: jc.Prony(-1.0, [1.0], [1.0], 0.3), ValueError, ("g_inf", "-1.0")),
             (lambda: jc.Prony(1.0, [1.0], [0.0], 0.3), ValueError, ("tau", "0.")),
@@ -240,7 +248,8 @@ class TestMaterials:
              ("tau", "distinct", "2.")),
             (lambda: jc.Prony(1.0, [1.0, 1.0], [1.0], 0.3), ValueError,
              ("g", "tau", "(2,)", "(1,)")),
-            (lambda: jc.Prony(0.0, [0.0], [1.0], 0.3), ValueError, ("G(0)", "g_inf=0.0")),
+            (lambda: jc.Prony(0.0, [0.0], [1.0], 0.3), ValueError,
+             ("G(0)", "g_inf=0.0")),
             (lambda: jc.Prony(1.0, [NAN], [1.0], 0.3), ValueError, ("g", "nan")),
             (lambda: jc.Prony.from_creep(1.0, [2.0], [1.0], 0.3), ValueError,
              ("J(0)", "j_inf=1.0")),
@@ -308,8 +317,8 @@ class TestSolve:
     def test_rejects_scene_and_mismatched_operator(self):
         raises(lambda: jc.solve(GRID), TypeError, "scene", "Grid")
         other = jc.HalfSpace(jc.Grid((4, 4), 1.0))
-        raises(lambda: jc.solve(scene(), operator=other), ValueError, "operator", "(4, 4)",
-               "(8, 8)")
+        raises(lambda: jc.solve(scene(), operator=other), ValueError, "operator",
+               "(4, 4)", "(8, 8)")
         normal_only = jc.HalfSpace(GRID, "normal")
         coupled = scene(x=jc.Force(0.0), friction=0.3, coupling="full")
         raises(lambda: jc.solve(coupled, operator=normal_only), ValueError, "operator",
@@ -343,7 +352,8 @@ class TestSolveNormal:
                "material", "'rubber'")
         raises(lambda: jc.solve_normal(GRID, sphere, ELASTIC, force=1.0, solver=3),
                TypeError, "solver", "3")
-        raises(lambda: jc.solve_normal(GRID, sphere, ELASTIC, force=1.0, operator="fft"),
+        raises(lambda: jc.solve_normal(GRID, sphere, ELASTIC, force=1.0,
+                                       operator="fft"),
                TypeError, "operator", "'fft'")
         raises(
             lambda: jc.solve_normal(GRID, sphere, ELASTIC, force=1.0,
@@ -408,7 +418,8 @@ class TestEdgeOfDomain:
         force = jc.Force(self.hertz_force(0.6e-3))
         jc.Scene(self.GRID16, jc.Sphere(self.R), mat, jnp.linspace(0.0, 0.01, 3), force)
         with pytest.warns(jc.EdgeContactWarning):
-            jc.Scene(self.GRID16, jc.Sphere(self.R), mat, jnp.linspace(0.0, 10.0, 3), force)
+            jc.Scene(self.GRID16, jc.Sphere(self.R), mat, jnp.linspace(0.0, 10.0, 3),
+                     force)
 
     def test_periodic_grid_never_warns(self):
         grid = jc.Grid((16, 16), 2e-3, periodic=True)
@@ -422,12 +433,14 @@ class TestEdgeOfDomain:
         x, y = self.GRID16.coordinates()
         heights = x**2 + y**2  # a flat paraboloid, R = 0.5 m
         loads = np.array([1e-6, 1e-3, 1e1])
-        with pytest.warns(jc.EdgeContactWarning, match="contact of the surface indenter"):
+        with pytest.warns(jc.EdgeContactWarning,
+                          match="contact of the surface indenter"):
             sc = jc.Scene(self.GRID16, heights, jc.Elastic(self.G, self.NU),
                           jnp.arange(3.0), normal=jc.Force(loads))
         sol = jc.solve(sc)
         assert bool(jnp.all(sol.converged))
-        np.testing.assert_array_equal(np.asarray(sol.edge_contact), [False, False, True])
+        np.testing.assert_array_equal(np.asarray(sol.edge_contact),
+                                      [False, False, True])
 
 
 def test_error_if_is_used_for_traced_values():
@@ -457,8 +470,8 @@ class TestHertzAndHalfSpace:
     def test_hertz_broadcasts_arrays(self):
         # a^3 is linear in W: one Hertz object per array of loads.
         h = jc.Hertz(1e-2, jnp.array([0.1, 0.8]), 1e6, 0.3)
-        np.testing.assert_allclose(float(h.contact_radius[1] / h.contact_radius[0]), 2.0,
-                                   rtol=1e-12)
+        np.testing.assert_allclose(float(h.contact_radius[1] / h.contact_radius[0]),
+                                   2.0, rtol=1e-12)
 
     def test_half_space_needs_a_grid(self):
         with pytest.raises(TypeError, match=r"grid must be a jc.Grid.*\(8, 8\)"):
@@ -680,8 +693,10 @@ class TestRuntimeMessageFirst:
         sc = eqx.tree_at(lambda s: s.times, scene(), jnp.asarray([0.0, 1.0, 0.5]))
         line, exc = self.first_line(lambda: jc.solve(sc))
         assert isinstance(exc, ValueError)
-        # A concrete scene is checked in Python before the program (the bad times named).
-        assert line.startswith("times must be strictly increasing (in the grid's dtype)")
+        # A concrete scene is checked in Python before the program (the bad times
+        # named).
+        assert line.startswith(
+            "times must be strictly increasing (in the grid's dtype)")
         assert "0.5" in line
 
     def test_other_errors_pass_through(self):

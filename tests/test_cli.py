@@ -134,7 +134,8 @@ def test_run_preset_writes_netcdf_metadata_and_plots(tmp_path, capsys):
     with xr.open_dataset(tmp_path / "zener.nc") as ds:
         assert ds["pressure"].dims == ("time", "x", "y")
         assert ds["shear"].dims == ("time", "component", "x", "y")
-        assert ds["pressure"].attrs["units"] == "Pa" and ds["time"].attrs["units"] == "s"
+        assert (ds["pressure"].attrs["units"] == "Pa"
+                and ds["time"].attrs["units"] == "s")
         assert json.loads(ds.attrs["scene"])["material"]["type"] == "Zener"
         assert ds.attrs["name"] == "zener"
     # --format npz: the same fields as plain arrays, equal to the netCDF file's.
@@ -381,7 +382,7 @@ def test_existing_outputs_are_kept_unless_overwrite(tmp_path, capsys):
     np.testing.assert_allclose(arrays["normal_force"], [0.15], rtol=1e-7)
 
 
-# ---- Scene files: a height-field indenter (issue 31, Deliver 3) -----------------------
+# ---- Scene files: a height-field indenter (issue 31, Deliver 3) ----------------------
 
 
 def _surface_toml(folder, file_line, extra=""):
@@ -428,7 +429,8 @@ def test_scene_file_surface_from_a_height_file(tmp_path, capsys, monkeypatch):
         ('file = "missing.npy"', "", [], "missing.npy' does not exist"),
         ('file = "small.npy"', "", [], "has shape (4, 4), the [grid] shape is (8, 8)"),
         ('file = "heights.npy"', "", ["--n", "16"], "a surface file is not resampled"),
-        ('file = "heights.npy"', '\nscale = "um"', [], "scale must be a number, got 'um'"),
+        ('file = "heights.npy"', '\nscale = "um"', [],
+         "scale must be a number, got 'um'"),
         ('file = "heights.png"', "", [], "expected .npy, .txt, .csv or .dat"),
         ("file = 3", "", [], "file must be a path, got 3"),
         ('radius = 1e-3', "", [], "unknown key(s) ['radius']"),
@@ -483,7 +485,8 @@ def test_second_run_loads_the_compiled_program_from_the_cache(tmp_path):
     def run(*extra):
         argv = [sys.executable, "-m", "jaxcontact", "run", "lc", "--n", "12", "--steps",
                 "3", "--out", str(tmp_path / "out"), "--overwrite", *extra]
-        proc = subprocess.run(argv, capture_output=True, text=True, env=env, cwd=tmp_path)
+        proc = subprocess.run(argv, capture_output=True, text=True, env=env,
+                              cwd=tmp_path)
         assert proc.returncode == 0, proc.stderr[-2000:]
         return proc.stderr
 

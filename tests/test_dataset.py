@@ -74,7 +74,8 @@ def test_solution_round_trip_every_field(tmp_path, dtype):
         np.testing.assert_array_equal(got, want, err_msg=name)
     np.testing.assert_array_equal(back["result"].values, np.asarray(sol.result._value))
     assert back["result"].attrs["flag_meanings"].split()[0] == "successful"
-    np.testing.assert_array_equal(back["edge_contact"].values, np.asarray(sol.edge_contact))
+    np.testing.assert_array_equal(back["edge_contact"].values,
+                                  np.asarray(sol.edge_contact))
     np.testing.assert_array_equal(back["initial_gap"].values,
                                   np.asarray(scene.indenter.gap(scene.grid)))
     assert back["pressure"].dtype == np.dtype(dtype)
@@ -90,7 +91,8 @@ def test_solution_round_trip_every_field(tmp_path, dtype):
     assert back["normal_force"].attrs["units"] == "N"
     # The scene, the solve options and the versions in the attributes.
     info = json.loads(back.attrs["scene"])
-    assert info["material"]["type"] == "Zener" and info["material"]["mu_0"] == 1.93e6 / 4
+    assert (info["material"]["type"] == "Zener"
+            and info["material"]["mu_0"] == 1.93e6 / 4)
     assert info["material"]["units"]["tau"] == "s"
     assert info["indenter"] == {"type": "Sphere", "radius": 0.01, "centre": [0.0, 0.0],
                                 "units": "m"}
@@ -143,7 +145,8 @@ def test_sweep_round_trip_with_batch_coordinate(tmp_path):
     np.testing.assert_array_equal(back["friction"].values, np.asarray(mus))
     for name in _field_names(sol):
         if name not in ("result", "times"):
-            np.testing.assert_array_equal(back[name].values, np.asarray(getattr(sol, name)))
+            np.testing.assert_array_equal(back[name].values,
+                                          np.asarray(getattr(sol, name)))
     np.testing.assert_array_equal(back["time"].values, np.asarray(scene.times))
     with pytest.raises(ValueError, match="needs a leading size 2"):
         sol.to_xarray(scene, batch={"friction": jnp.array([0.2, 0.3, 0.4])})
@@ -177,7 +180,8 @@ def test_stress_round_trip(tmp_path, depth):
     assert back["szz"].dims == (("depth", "x", "y") if multi else ("x", "y"))
     np.testing.assert_array_equal(back["depth"].values, np.asarray(depth))
     for name in ("sxx", "syy", "szz", "sxy", "sxz", "syz", "von_mises", "max_shear"):
-        np.testing.assert_array_equal(back[name].values, np.asarray(getattr(stress, name)))
+        np.testing.assert_array_equal(back[name].values,
+                                      np.asarray(getattr(stress, name)))
     assert back["szz"].attrs["units"] == "Pa"
 
 

@@ -35,7 +35,8 @@ def test_docs_build_without_warnings(tmp_path):
     src = tmp_path / "src"
     shutil.copytree(ROOT / "docs", src / "docs", ignore=shutil.ignore_patterns(
         "_build", "apidocs"))
-    for path in ("jaxcontact", "benchmarks/README.md", "benchmarks/results/paper_figures"):
+    for path in ("jaxcontact", "benchmarks/README.md",
+                 "benchmarks/results/paper_figures"):
         target = src / path
         target.parent.mkdir(parents=True, exist_ok=True)
         copy = shutil.copytree if (ROOT / path).is_dir() else shutil.copy

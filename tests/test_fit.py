@@ -7,16 +7,18 @@ Three layers:
    closed-form stand-in for the contact model: the Lee & Radok / Hertz-Volterra
    response of a rigid sphere, discretised like the paper's scheme (piecewise-constant
    increments),
-       force control:        delta(t)^(3/2) = 3 (1 - nu) / (8 sqrt R) sum_n J(t - t_n) dW_n
-       displacement control: W(t) = 8 sqrt R / (3 (1 - nu)) sum_n G(t - t_n) d(delta^(3/2))_n
+       force control:
+           delta(t)^(3/2) = 3 (1 - nu) / (8 sqrt R) sum_n J(t - t_n) dW_n
+       displacement control:
+           W(t) = 8 sqrt R / (3 (1 - nu)) sum_n G(t - t_n) d(delta^(3/2))_n
    (true shear moduli: E* = 2 G / (1 - nu));
 3. the full contact model (`jc.solve`, exact implicit gradients): recovering the
    paper's PMMA series (Eq. 27) from synthetic noiseless data.
 
 PMMA (paper Eq. 27, Chen et al. 2011), in true shear moduli (the paper's moduli are
-2 G, see DESIGN.md): g_inf = 714.855 MPa, g = (92.31, 95.53) MPa, tau = (8.93, 117.96) s,
-nu = 0.38; built here from the paper's creep form (Eq. 28) with `jc.Prony.from_creep`
-(Eq. 28 is in 1/GPa of the paper's modulus: J_true = 2 J_paper).
+2 G, see DESIGN.md): g_inf = 714.855 MPa, g = (92.31, 95.53) MPa,
+tau = (8.93, 117.96) s, nu = 0.38; built here from the paper's creep form (Eq. 28) with
+`jc.Prony.from_creep` (Eq. 28 is in 1/GPa of the paper's modulus: J_true = 2 J_paper).
 """
 
 import functools
@@ -58,7 +60,7 @@ def test_pmma_reference_is_the_papers_eq27():
                                [714.855e6, 92.31e6, 95.53e6, 8.93, 117.96], rtol=2e-3)
 
 
-# ---- the stand-in model ----------------------------------------------------------------
+# ---- the stand-in model --------------------------------------------------------------
 
 
 def hertz_volterra_force(material, ctx):
@@ -81,7 +83,8 @@ def hertz_volterra_depth(material, ctx):
     x = 3 * (1 - material.poisson) / (8 * jnp.sqrt(jnp.asarray(R, load.dtype))) * (
         kernel @ dw)
     pos = x > 0
-    return jnp.where(pos, jnp.where(pos, x, 1) ** (2 / 3), 0), jnp.ones(times.shape, bool)
+    return (jnp.where(pos, jnp.where(pos, x, 1) ** (2 / 3), 0),
+            jnp.ones(times.shape, bool))
 
 
 def step_times(nt=40, t_end=500.0, dtype=jnp.float64):
@@ -113,7 +116,8 @@ def surrogate_case(kind, dtype=jnp.float64, nt=24):
     return data, template, (hertz_volterra_depth, ctx)
 
 
-@pytest.mark.parametrize("kind", ["force", pytest.param("depth", marks=pytest.mark.slow)])
+@pytest.mark.parametrize("kind",
+                         ["force", pytest.param("depth", marks=pytest.mark.slow)])
 def test_fit_recovers_pmma_on_the_closed_form_model(kind):
     """Noiseless data: every parameter to 1e-6 (the optimiser logic, start to end)."""
     data, template, model = surrogate_case(kind)
@@ -207,7 +211,8 @@ def test_a_fit_stuck_at_a_boundary_restarts_or_says_it_has_not_converged(monkeyp
 @pytest.mark.parametrize("limits", [dict(optimiser="lm", lm_steps=1),
                                     dict(optimiser="auto", adam_steps=0, lbfgs_steps=1,
                                          lm_steps=1),
-                                    dict(optimiser="lbfgs", adam_steps=0, lbfgs_steps=1)])
+                                    dict(optimiser="lbfgs", adam_steps=0,
+                                         lbfgs_steps=1)])
 def test_a_fit_stopped_early_is_not_converged(limits):
     data, template, model = ramp_hold_unload_case()
     start = jc.Prony(3e9, jnp.array([0.7e9]), jnp.array([1.5]), NU)
@@ -290,7 +295,8 @@ def test_sensitivities_match_finite_differences_and_predict_the_noise_error():
     print("\nnoise / rms(F) | max |error| (g_inf, g1, g2, tau1, tau2) | GN std (log)")
     for level in (1e-3, 1e-2):
         noisy = jc.IndentationData(data.times,
-                                   force=data.force + level * scale * rng.standard_normal(
+                                   force=data.force
+                                   + level * scale * rng.standard_normal(
                                        data.force.shape),
                                    depth=data.depth)
         fit = jc.fit_prony(noisy, template, 2, _model=model, noise_std=level * scale)
@@ -298,7 +304,8 @@ def test_sensitivities_match_finite_differences_and_predict_the_noise_error():
         err = params(fit.material) / params(truth) - 1
         std = np.concatenate([[fit.std["g_inf"]], fit.std["g"], fit.std["tau"]])
         rows.append((level, err, std))
-        print(f"{level:8.0e}       | {np.array2string(np.abs(err), precision=1, floatmode='maxprec_equal', formatter={'float': '{:.1e}'.format})} | "
+        print(f"{level:8.0e}       | "
+              f"{np.array2string(np.abs(err), precision=1, floatmode='maxprec_equal', formatter={'float': '{:.1e}'.format})} | "  # noqa: E501
               f"{np.array2string(std, formatter={'float': '{:.1e}'.format})}")
         # Graceful: each error within 4 standard deviations of the linearised estimate.
         assert np.all(np.abs(err) < 4 * std + 1e-9), (err, std)
@@ -308,7 +315,8 @@ def test_sensitivities_match_finite_differences_and_predict_the_noise_error():
 
     # Finite-difference Jacobian of the relative residual in the log-parameters, at
     # the last fit, and the same Gauss-Newton formula.
-    theta = np.log(np.concatenate([[float(fit.material.g_inf)], np.asarray(fit.material.g),
+    theta = np.log(np.concatenate([[float(fit.material.g_inf)],
+                                   np.asarray(fit.material.g),
                                    np.asarray(fit.material.tau)]))
 
     def curve(t):
@@ -419,11 +427,12 @@ def test_parametrisation_round_trip_and_positivity():
     assert float(m.g_inf) > 0 and np.all(np.asarray(m.g) > 0)
     assert np.all(np.asarray(m.tau) > 0) and 0 < float(m.poisson) < 0.5
     # Initial times: log-spaced strictly inside [first step, span].
-    np.testing.assert_allclose(_fit._initial_times(np.array([0.0, 1.0, 10.0, 1000.0]), 3),
-                               [10 ** 0.75, 10 ** 1.5, 10 ** 2.25], rtol=1e-12)
+    np.testing.assert_allclose(
+        _fit._initial_times(np.array([0.0, 1.0, 10.0, 1000.0]), 3),
+        [10 ** 0.75, 10 ** 1.5, 10 ** 2.25], rtol=1e-12)
 
 
-# ---- the full contact model ------------------------------------------------------------
+# ---- the full contact model ----------------------------------------------------------
 
 
 @functools.cache
@@ -559,7 +568,8 @@ def test_fit_is_unit_invariant():
                                 scheme="linear").normal_force)
     fits = []
     for length, force_unit, time_unit in ((1.0, 1.0, 1.0), (1e6, 1e9, 1e3)):
-        data = jc.IndentationData(np.asarray(times) * time_unit, force=force * force_unit,
+        data = jc.IndentationData(np.asarray(times) * time_unit,
+                                  force=force * force_unit,
                                   depth=np.asarray(depth) * length)
         placeholder = jc.Elastic(3e3 * force_unit / length**2, 0.5)
         fits.append(jc.fit_prony(data, scene(8, placeholder, length, time_unit,

@@ -123,7 +123,8 @@ def test_partial_slip_gradient_displacement_control():
         sol = jc.solve(scene, rtol=rtol)
         # Tangential quantities only: an O(1) approach term would bury the friction
         # derivative under the finite-difference noise (rtol x |loss| / h).
-        return jnp.sum(sol.tangential_force[:, 0]) * 1e3 + 1e-7 * jnp.sum(sol.shear[-1] ** 2)
+        return (jnp.sum(sol.tangential_force[:, 0]) * 1e3
+                + 1e-7 * jnp.sum(sol.shear[-1] ** 2))
 
     _check_against_fd(loss, jnp.array([G / 3, 0.3, 1.0e-6]))
 
@@ -139,7 +140,8 @@ def test_partial_slip_gradient_load_control_uncoupled():
         mu_0, friction, force = x
         material = jc.Zener(mu_inf=G, mu_0=mu_0, tau=0.01, poisson=NU)
         scene = jc.Scene(grid, jc.Sphere(R), material, times, jc.Force(W),
-                         x=jc.Force(force * jnp.array([0.3, 0.6, 1.0])), friction=friction)
+                         x=jc.Force(force * jnp.array([0.3, 0.6, 1.0])),
+                         friction=friction)
         sol = jc.solve(scene, rtol=rtol)
         return (1e6 * jnp.sum(sol.tangential_displacement) + 1e6 * jnp.sum(sol.approach)
                 + 1e-10 * jnp.sum(sol.shear[-1] ** 2))
@@ -189,10 +191,12 @@ def test_jit_vmap_grad_compose():
 
 @pytest.mark.parametrize("field", ["mu_0", "tau"])
 def test_tree_at_gradient_on_scene(field):
-    """Gradients w.r.t. a scene's own leaves (`eqx.tree_at` replaces a material field)."""
+    """Gradients w.r.t. a scene's own leaves (`eqx.tree_at` replaces a material
+    field)."""
     grid = jc.Grid((16, 16), 4 * A0)
     material = jc.Zener(mu_inf=G, mu_0=G / 4, tau=0.01, poisson=NU)
-    scene = jc.Scene(grid, jc.Sphere(R), material, jnp.linspace(0.0, 0.02, 3), jc.Force(W))
+    scene = jc.Scene(grid, jc.Sphere(R), material, jnp.linspace(0.0, 0.02, 3),
+                     jc.Force(W))
 
     def depth(value, rtol=None):
         new = eqx.tree_at(lambda s: getattr(s.material, field), scene, value[0])
@@ -208,9 +212,11 @@ def test_float32_gradient_is_finite_and_close():
     def depth(mu_0, dtype):
         grid = jc.Grid((16, 16), jnp.asarray(4 * A0, dtype))
         material = jc.Zener(mu_inf=jnp.asarray(G, dtype), mu_0=mu_0,
-                            tau=jnp.asarray(0.01, dtype), poisson=jnp.asarray(NU, dtype))
+                            tau=jnp.asarray(0.01, dtype),
+                            poisson=jnp.asarray(NU, dtype))
         scene = jc.Scene(grid, jc.Sphere(jnp.asarray(R, dtype)), material,
-                         jnp.linspace(0.0, 0.02, 3, dtype=dtype), jc.Force(jnp.asarray(W, dtype)))
+                         jnp.linspace(0.0, 0.02, 3, dtype=dtype),
+                         jc.Force(jnp.asarray(W, dtype)))
         return jc.solve(scene).approach[-1] * 1e6
 
     g32 = jax.grad(depth)(jnp.asarray(G / 4, jnp.float32), jnp.float32)

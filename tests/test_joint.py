@@ -4,10 +4,11 @@ tangential rounds (`jc.Rounds`), and the safeguards of `jc.solve`'s default solv
 
 The rounds are validated on their own in test_partial_slip.py (Cattaneo-Mindlin,
 Spence, pointwise Coulomb, the dense reference). The joint solver (called here WITHOUT
-the fallbacks, so that a joint failure shows) solves the same discrete problem along a different iteration
-path; both stop at rtol = 1e-8 on L2 norms of the contact violations, so pointwise they
-agree to about `2 rtol n` of max p (see `same` in test_partial_slip.py), and their
-stick sets agree up to cells whose |q| is within that tolerance of mu p.
+the fallbacks, so that a joint failure shows) solves the same discrete problem along a
+different iteration path; both stop at rtol = 1e-8 on L2 norms of the contact
+violations, so pointwise they agree to about `2 rtol n` of max p (see `same` in
+test_partial_slip.py), and their stick sets agree up to cells whose |q| is within that
+tolerance of mu p.
 
 Step-level runs use one jitted `lax.scan` stepper per static configuration, shared
 between cases (loads, friction, the slip law are dynamic), on small grids (n = 32):
@@ -61,8 +62,8 @@ def step_solver(method, nd, fc, rtol=RTOL, max_steps=2000, max_rounds=100):
 
 
 @functools.cache
-def stepper(method, coupling, x_force, dtype=jnp.float64, n=N, rtol=RTOL, max_steps=2000,
-            max_rounds=100):
+def stepper(method, coupling, x_force, dtype=jnp.float64, n=N, rtol=RTOL,
+            max_steps=2000, max_rounds=100):
     """A jitted scan over `(W_k, T_k)` with one step solver on `jc.StepProblem`s, as
     `_solve.py` steps (one program shared by the cases of a configuration).
 
@@ -105,14 +106,16 @@ CASES = {
     "normal ramp": ("full", True, W * np.arange(1, STEPS + 1) / STEPS,
                     np.zeros((STEPS, 2)), MU),
     "CM F_x ramp": ("full", True, np.full(STEPS, W),
-                    np.stack([[0.0, 0.3, 0.6][:STEPS], np.zeros(STEPS)], -1) * MU * W, MU),
+                    np.stack([[0.0, 0.3, 0.6][:STEPS], np.zeros(STEPS)], -1) * MU * W,
+                    MU),
     "CM F_x, F_y": ("full", True, np.full(STEPS, W),
                     np.array([[0.3, 0.2], [0.5, -0.3], [0.2, 0.6]]) * MU * W, 0.5),
     "delta_x ramp to sliding": ("full", False, np.full(STEPS, W),
                                 np.stack([np.array([0.4, 0.9, 1.5]) * slip_distance(),
                                           np.zeros(STEPS)], -1), MU),
     "semi-coupled x, CM": ("x", True, np.full(STEPS, W),
-                           np.stack([[0.2, 0.5, 0.8], np.zeros(STEPS)], -1) * MU * W, MU),
+                           np.stack([[0.2, 0.5, 0.8], np.zeros(STEPS)], -1) * MU * W,
+                           MU),
 }
 
 
@@ -165,12 +168,14 @@ def test_joint_matches_rounds(name, law):
     # delta_t: a multiplier (mean displacement over stick cells), accurate to the
     # solution tolerance of the displacement scale (Mindlin's sliding distance).
     scale = max(np.abs(rounds.delta_t).max(), slip_distance())
-    np.testing.assert_allclose(joint.delta_t, rounds.delta_t, rtol=0, atol=same(N) * scale)
+    np.testing.assert_allclose(joint.delta_t, rounds.delta_t, rtol=0,
+                               atol=same(N) * scale)
     # Stick sets: equal except cells on the stick/slip boundary, whose |q| / mu p is
     # within the solution tolerance of 1.
     differ = joint.stick != rounds.stick
     mag = np.sqrt(np.sum(rounds.shear**2, axis=1))
-    ratio = np.where(rounds.pressure > 0, mag / np.maximum(mu * rounds.pressure, 1e-300), 0)
+    ratio = np.where(rounds.pressure > 0,
+                     mag / np.maximum(mu * rounds.pressure, 1e-300), 0)
     assert np.all(np.abs(ratio[differ] - 1) <= 1e-4), ratio[differ]
     assert differ.sum(axis=(1, 2)).max() <= 4
     assert np.array_equal(joint.sliding, rounds.sliding)
@@ -192,7 +197,8 @@ def test_joint_is_cheaper_than_rounds():
     """The point of the joint solver: fewer iterations for a coupled step (each joint
     iteration costs about one coupled operator application; each round iteration at
     least a normal or a tangential one)."""
-    joint, rounds = solved("joint", "CM F_x ramp", True), solved("rounds", "CM F_x ramp", True)
+    joint, rounds = (solved("joint", "CM F_x ramp", True),
+                     solved("rounds", "CM F_x ramp", True))
     assert joint.iterations.sum() * 2 < rounds.iterations.sum()
 
 
@@ -212,9 +218,11 @@ def test_incompressible_coupled_ramp_does_not_cycle():
     assert res.iterations.max() <= 20, res.iterations
     assert np.abs(res.shear).max() <= 1e-6 * res.pressure.max()
     grid = jc.Grid((N, N), 4 * hertz_radius())
-    ref = jc.solve(jc.Scene(grid, jc.Sphere(R), jc.Elastic(G, 0.5), times=jnp.arange(4.0),
-                            normal=jc.Force(jnp.asarray(w))), rtol=RTOL)
-    assert np.abs(res.pressure - np.asarray(ref.pressure)).max() <= same(N) * res.pressure.max()
+    ref = jc.solve(jc.Scene(grid, jc.Sphere(R), jc.Elastic(G, 0.5),
+                            times=jnp.arange(4.0), normal=jc.Force(jnp.asarray(w))),
+                   rtol=RTOL)
+    assert (np.abs(res.pressure - np.asarray(ref.pressure)).max()
+            <= same(N) * res.pressure.max())
 
 
 @pytest.mark.parametrize("ratio", [0.75, 0.9, 0.99])
@@ -418,8 +426,8 @@ def test_slip_multiplier_recovers_the_rigid_displacement():
     np.testing.assert_allclose(fit[1], delta[1], rtol=1e-10)
     # No contact cell at all: finite (zero), not NaN.
     none = np.asarray(slip_multiplier(jnp.asarray(w), jnp.asarray(q_hat),
-                                      jnp.zeros((n, n), bool), jnp.asarray([True, True]),
-                                      jnp.zeros(2)))
+                                      jnp.zeros((n, n), bool),
+                                      jnp.asarray([True, True]), jnp.zeros(2)))
     assert np.array_equal(none, np.zeros(2))
 
     sign = np.where(rng.uniform(size=(n, n)) < 0.3, -1.0, 1.0)
@@ -434,8 +442,8 @@ def test_slip_multiplier_recovers_the_rigid_displacement():
 
 @pytest.mark.slow
 def test_default_solver_never_claims_a_wrong_answer():
-    """the default solver (joint, then the rounds, then the load root search) never puts a
-    converged flag on a wrong answer. With an unreachable tolerance (rtol 1e-17, below
+    """the default solver (joint, then the rounds, then the load root search) never puts
+    a converged flag on a wrong answer. With an unreachable tolerance (rtol 1e-17, below
     the float64 round-off of the residual) and the tightest bounds (one joint iteration
     and its forced bound update, one round of one-iteration solves) it reports
     converged=False with a finite residual above rtol. With the same bounds at rtol
@@ -455,7 +463,8 @@ def test_default_solver_never_claims_a_wrong_answer():
     # The reference: the same step at the end of the ramp (its load history does not
     # matter in one step from zero under the incremental law: no previous slip),
     # solved alone with the default iteration bound.
-    ref = jax.tree_util.tree_map(np.asarray, stepper("step", "full", True)(w, t, MU, 1.0))
+    ref = jax.tree_util.tree_map(np.asarray,
+                                 stepper("step", "full", True)(w, t, MU, 1.0))
     p_max = ref.pressure.max()
     for max_steps, max_rounds in ((1, 1), (1, 100), (3, 100)):
         run = stepper("step", "full", True, max_steps=max_steps, max_rounds=max_rounds)
@@ -487,7 +496,7 @@ def test_float32(method):
     assert np.abs(sol.shear - ref.shear).max() <= 1e-3 * mu * p_max
 
 
-# ---- Viscoelastic scene through jc.solve; load control that never fails -----------------
+# ---- Viscoelastic scene through jc.solve; load control that never fails --------------
 
 def zener_scene(slip="total", n=48, steps=21, x=jc.Force(0.0225)):
     """The issue's scene: Zener (paper Eqs. 29-30), coupled, total slip law."""
@@ -495,7 +504,8 @@ def zener_scene(slip="total", n=48, steps=21, x=jc.Force(0.0225)):
     a = float(jc.Hertz(R, 0.15, 1.93e6 / 4, 0.3).contact_radius)
     grid = jc.Grid((n, n), 4 * a)
     return jc.Scene(grid, jc.Sphere(R), mat, times=jnp.linspace(0.0, 0.02, steps),
-                    normal=jc.Force(0.15), x=x, friction=0.3, coupling="full", slip=slip)
+                    normal=jc.Force(0.15), x=x, friction=0.3, coupling="full",
+                    slip=slip)
 
 
 SOLVERS = {
@@ -538,7 +548,8 @@ def test_zener_joint_matches_rounds():
     joint, rounds = zener("joint"), zener("rounds")
     p_max = rounds.pressure.max(axis=(1, 2))
     n = rounds.pressure.shape[-1]
-    assert (np.abs(joint.pressure - rounds.pressure).max(axis=(1, 2)) / p_max).max() <= same(n)
+    assert ((np.abs(joint.pressure - rounds.pressure).max(axis=(1, 2)) / p_max).max()
+            <= same(n))
     assert (np.abs(joint.shear - rounds.shear).max(axis=(1, 2, 3))
             / (0.3 * p_max)).max() <= same(n)
     np.testing.assert_allclose(joint.tangential_displacement[:, 0],
@@ -573,7 +584,7 @@ def test_solve_takes_solver_objects_only():
                           scene.normal), solver=jc.JointPCG())
 
 
-# ---- The preconditioner of the joint iteration ------------------------------------------
+# ---- The preconditioner of the joint iteration ---------------------------------------
 
 def _restricted_cg(apply_a, precondition, rhs, mask, rtol=1e-8, max_steps=300):
     """Preconditioned CG on `mask A mask x = mask rhs`; returns (x, iterations)."""
@@ -619,10 +630,10 @@ def _disc_problem(n, radius):
 @pytest.mark.parametrize("kind", ["padded", "unpadded", "unpadded+continuum"])
 def test_block_preconditioner(kind):
     """`precondition.block_preconditioner` on each block of the operator restricted to
-    a disc (a stick zone of 20 cells radius at n = 64): CG converges to 1e-8 in at most 40 %
-    of the iterations of the diagonal (Jacobi) preconditioner (50 % with the wrapped
-    spectra on the unpadded grid; measured 9, 11-12 and 9 against 27-29), to the same
-    solution (1e-6 of its max). Without the floor of the tangential spectra by the
+    a disc (a stick zone of 20 cells radius at n = 64): CG converges to 1e-8 in at most
+    40 % of the iterations of the diagonal (Jacobi) preconditioner (50 % with the
+    wrapped spectra on the unpadded grid; measured 9, 11-12 and 9 against 27-29), to the
+    same solution (1e-6 of its max). Without the floor of the tangential spectra by the
     normal one, the xx block needs more than twice as many (measured 21): the padded
     xx spectrum has negative modes, checked here (the reason for the floor)."""
     n = 64
@@ -669,13 +680,15 @@ def test_continuum_symbols_fix_the_wrapped_spectra():
         assert abs(np.median(ratio) - 1) <= 0.05 and ratio.max() <= 1.01, ratio
     padded = block_preconditioner(op, nn, xx, yy, coarse=False)
     wrapped = block_preconditioner(op, nn, xx, yy, coarse=True)
-    raised = block_preconditioner(op, nn, xx, yy, coarse=True, compliance=1.0, poisson=NU)
+    raised = block_preconditioner(op, nn, xx, yy, coarse=True, compliance=1.0,
+                                  poisson=NU)
     mask, rhs = _disc_problem(n, 0.435)
     for block, spec in enumerate((nn, xx, yy)):
         _, k_padded = _block_cg_iterations(op, padded, spec, block, mask, rhs)
         _, k_wrapped = _block_cg_iterations(op, wrapped, spec, block, mask, rhs)
         _, k_raised = _block_cg_iterations(op, raised, spec, block, mask, rhs)
-        assert k_raised <= k_padded < k_wrapped - 2, (block, k_raised, k_padded, k_wrapped)
+        assert k_raised <= k_padded < k_wrapped - 2, (block, k_raised, k_padded,
+                                                      k_wrapped)
 
 
 @pytest.mark.slow
@@ -691,8 +704,8 @@ def test_periodic_coupled_step_converges_quickly():
     grid = jc.Grid((48, 48), 4 * a, periodic=True)
     force = 0.5 * MU * W
     scene = jc.Scene(grid, jc.Sphere(R), jc.Elastic(G, NU), jnp.arange(2.0),
-                     jc.Force(W * jnp.array([0.5, 1.0])), x=jc.Force(force * jnp.ones(2)),
-                     friction=MU, coupling="full")
+                     jc.Force(W * jnp.array([0.5, 1.0])),
+                     x=jc.Force(force * jnp.ones(2)), friction=MU, coupling="full")
     sol = jax.tree_util.tree_map(np.asarray, jc.solve(scene))
     assert np.all(sol.converged), sol.residual
     assert np.all(sol.iterations <= 150), sol.iterations
@@ -714,9 +727,9 @@ def test_a_load_at_the_friction_limit_slides_at_once():
     force = MU * W * np.array([np.cos(angle), np.sin(angle)])
     for periodic in (False, True):
         grid = jc.Grid((N, N), 4 * a, periodic=periodic)
-        scene = jc.Scene(grid, jc.Sphere(R), jc.Elastic(G, NU), jnp.zeros(1), jc.Force(W),
-                         x=jc.Force(force[0]), y=jc.Force(force[1]), friction=MU,
-                         coupling="full")
+        scene = jc.Scene(grid, jc.Sphere(R), jc.Elastic(G, NU), jnp.zeros(1),
+                         jc.Force(W), x=jc.Force(force[0]), y=jc.Force(force[1]),
+                         friction=MU, coupling="full")
         sol = jax.tree_util.tree_map(np.asarray, jc.solve(scene, rtol=RTOL))
         assert sol.converged[0] and sol.sliding[0], (periodic, sol.residual)
         assert sol.iterations[0] <= 30, (periodic, sol.iterations)

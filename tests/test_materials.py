@@ -21,7 +21,8 @@ def _materials():
         "prony_fluid": (jc.Prony(0.0, [1.0, 2.0, 0.5], [1.0, 0.1, 10.0], 0.3), 2.0),
         "prony_zero_arm": (jc.Prony(1.0, [0.0, 1.0, 0.3], [0.3, 2.0, 0.05], 0.3), 1.0),
         "prony_empty": (jc.Prony(1.5, [], [], 0.3), 1.0),
-        "pmma_eq28": (jc.Prony.from_creep(0.699, [0.0838, 0.06174], [133.869, 9.9404], 0.38), 50.0),
+        "pmma_eq28": (jc.Prony.from_creep(0.699, [0.0838, 0.06174], [133.869, 9.9404],
+                                          0.38), 50.0),
         "creep_fluid": (
             jc.Prony.from_creep(0.9, [0.2, 0.3], [0.5, 4.0], 0.3, fluidity=0.25),
             2.0,
@@ -45,11 +46,14 @@ def _volterra_integrand(mat, s, t):
 def test_volterra_identity(name):
     """int_0^t J(t - s) dG(s) = G(0) J(t) + int_0^t J(t - s) G'(s) ds = 1."""
     mat, scale = MATERIALS[name]
-    integrand = lambda s, t: _volterra_integrand(mat, s, t)
+    def integrand(s, t):
+        return _volterra_integrand(mat, s, t)
+
     g0 = float(mat.relaxation(0.0))
     for t in scale * np.array([0.05, 0.4, 1.0, 3.0, 8.0]):
         integral, _ = integrate.quad(
-            lambda s: float(integrand(s, t)), 0.0, t, epsabs=1e-14, epsrel=1e-13, limit=400
+            lambda s: float(integrand(s, t)), 0.0, t, epsabs=1e-14, epsrel=1e-13,
+            limit=400
         )
         total = g0 * float(mat.creep(t)) + integral
         assert abs(total - 1.0) < 1e-8, (name, t, total)
@@ -59,12 +63,14 @@ def _laplace(mat, s):
     cs = mat.creep_series()
     jhat = (
         cs.glassy / s
-        + jnp.sum(cs.strengths[None, :] / (s[:, None] * (1 + s[:, None] * cs.times[None, :])), axis=1)
+        + jnp.sum(cs.strengths[None, :]
+                  / (s[:, None] * (1 + s[:, None] * cs.times[None, :])), axis=1)
         + cs.fluidity / s**2
     )
     if isinstance(mat, jc.Prony):
         ghat = mat.g_inf / s + jnp.sum(
-            mat.g[None, :] * mat.tau[None, :] / (1 + s[:, None] * mat.tau[None, :]), axis=1
+            mat.g[None, :] * mat.tau[None, :] / (1 + s[:, None] * mat.tau[None, :]),
+            axis=1
         )
     else:
         ghat = None
@@ -140,7 +146,8 @@ def test_from_creep_wide_spectrum(fluidity):
     assert mat.g.shape == (n + (fluidity is not None),)
     assert np.all(np.asarray(mat.g) >= 0)
     s = jnp.logspace(-12, 12, 49)
-    jhat = j_inf / s - jnp.sum(j[None, :] * tau[None, :] / (1 + s[:, None] * tau[None, :]), axis=1)
+    jhat = j_inf / s - jnp.sum(
+        j[None, :] * tau[None, :] / (1 + s[:, None] * tau[None, :]), axis=1)
     jhat = jhat + (fluidity or 0.0) / s**2
     ghat, _ = _laplace(mat, s)
     np.testing.assert_allclose(s**2 * ghat * jhat, 1.0, rtol=1e-11, atol=0)
@@ -177,7 +184,8 @@ def test_paper_forms():
     np.testing.assert_allclose(z.relaxation(1e3), mu_0, rtol=1e-14)  # mu_0: long-time
     np.testing.assert_allclose(z.relaxation_time, tau / 4, rtol=1e-15)
     m = jc.Maxwell(shear_modulus=2.0, viscosity=5.0, poisson=0.3)
-    np.testing.assert_allclose(m.relaxation(t * 100), 2.0 * np.exp(-t * 100 / 2.5), rtol=1e-14)
+    np.testing.assert_allclose(m.relaxation(t * 100), 2.0 * np.exp(-t * 100 / 2.5),
+                               rtol=1e-14)
     np.testing.assert_allclose(m.creep(t * 100), 0.5 + t * 100 / 5.0, rtol=1e-14)
     np.testing.assert_allclose(m.relaxation_time, 2.5)
 
@@ -229,7 +237,8 @@ def test_round_trip():
     t = jnp.linspace(0.0, 30.0, 13)
     solid = jc.Prony(1.0, [0.5, 2.0, 1.2], [0.1, 1.0, 7.0], 0.3)
     cs = solid.creep_series()
-    back = jc.Prony.from_creep(cs.glassy + jnp.sum(cs.strengths), cs.strengths, cs.times, 0.3)
+    back = jc.Prony.from_creep(cs.glassy + jnp.sum(cs.strengths), cs.strengths,
+                               cs.times, 0.3)
     np.testing.assert_allclose(back.g_inf, solid.g_inf, rtol=1e-13)
     order = np.argsort(np.asarray(back.tau))
     np.testing.assert_allclose(np.asarray(back.tau)[order], [0.1, 1.0, 7.0], rtol=1e-12)
@@ -246,7 +255,8 @@ def test_round_trip():
     cs = fluid.creep_series()
     np.testing.assert_allclose(cs.fluidity, 1 / (1.0 + 0.2 + 5.0), rtol=1e-14)
     back = jc.Prony.from_creep(
-        cs.glassy + jnp.sum(cs.strengths), cs.strengths, cs.times, 0.3, fluidity=cs.fluidity
+        cs.glassy + jnp.sum(cs.strengths), cs.strengths, cs.times, 0.3,
+        fluidity=cs.fluidity
     )
     assert float(back.g_inf) == 0.0
     np.testing.assert_allclose(back.relaxation(t), fluid.relaxation(t), rtol=1e-12)
@@ -269,7 +279,8 @@ def test_paper_pmma_eq27_vs_eq28():
     eq28 = 0.699 - 0.0838 * np.exp(-t / 133.869) - 0.06174 * np.exp(-t / 9.9404)
     np.testing.assert_allclose(eq27.creep(t) * 1e3, eq28, rtol=1e-3)
     # And back: Eq. 28 -> a relaxation series close to Eq. 27.
-    pmma = jc.Prony.from_creep(0.699e-3, [0.0838e-3, 0.06174e-3], [133.869, 9.9404], 0.38)
+    pmma = jc.Prony.from_creep(0.699e-3, [0.0838e-3, 0.06174e-3], [133.869, 9.9404],
+                               0.38)
     order = np.argsort(np.asarray(pmma.tau))
     np.testing.assert_allclose(pmma.g_inf, 1429.71, rtol=1e-3)
     np.testing.assert_allclose(np.asarray(pmma.tau)[order], [8.93, 117.96], rtol=5e-4)
@@ -309,23 +320,30 @@ def _fd_check(f, x, ts=(0.05, 0.7, 6.0), rel=1e-6, h=1e-6):
             fd[i] = (fp - fm) / (2 * step)
         scale = np.max(np.abs(fd))
         assert scale > 0
-        np.testing.assert_allclose(grad, fd, rtol=rel, atol=rel * scale, err_msg=f"t={t}")
+        np.testing.assert_allclose(grad, fd, rtol=rel, atol=rel * scale,
+                                   err_msg=f"t={t}")
 
 
 def test_gradients_vs_finite_differences_simple():
     _fd_check(lambda p, t: jc.Maxwell(p[0], p[1], 0.3).creep(t), [2.0, 3.0])
     _fd_check(lambda p, t: jc.Maxwell(p[0], p[1], 0.3).relaxation(t), [2.0, 3.0])
     _fd_check(lambda p, t: jc.Zener(p[0], p[1], p[2], 0.3).creep(t), [3.0, 0.75, 0.5])
-    _fd_check(lambda p, t: jc.Zener(p[0], p[1], p[2], 0.3).relaxation(t), [3.0, 0.75, 0.5])
+    _fd_check(lambda p, t: jc.Zener(p[0], p[1], p[2], 0.3).relaxation(t),
+              [3.0, 0.75, 0.5])
     _fd_check(lambda p, t: jc.Elastic(p, 0.3).creep(t), 2.0)
 
 
 def test_gradients_vs_finite_differences_prony():
     # Prony solid: [g_inf, g (3), tau (3)]
-    f = lambda p, t: jc.Prony(p[0], p[1:4], p[4:7], 0.3).creep(t)
+    def f(p, t):
+        return jc.Prony(p[0], p[1:4], p[4:7], 0.3).creep(t)
+
     _fd_check(f, [1.0, 0.5, 2.0, 1.2, 0.1, 1.0, 7.0])
+
     # Prony fluid (g_inf = 0 held fixed): g and tau
-    f = lambda p, t: jc.Prony(0.0, p[0:3], p[3:6], 0.3).creep(t)
+    def f(p, t):
+        return jc.Prony(0.0, p[0:3], p[3:6], 0.3).creep(t)
+
     _fd_check(f, [1.0, 2.0, 0.5, 1.0, 0.1, 10.0])
 
 
@@ -336,7 +354,11 @@ def test_gradients_vs_finite_differences_from_creep():
         return mat.relaxation(t) + 3 * mat.creep(t)
 
     _fd_check(f, [0.9, 0.2, 0.3, 0.5, 4.0])
-    f = lambda p, t: jc.Prony.from_creep(p[0], p[1:3], p[3:5], 0.3, fluidity=p[5]).relaxation(t)
+
+    def f(p, t):
+        return jc.Prony.from_creep(p[0], p[1:3], p[3:5], 0.3,
+                                   fluidity=p[5]).relaxation(t)
+
     _fd_check(f, [0.9, 0.2, 0.3, 0.5, 4.0, 0.25])
 
 
@@ -344,7 +366,8 @@ def test_gradients_of_creep_series():
     """d(strengths, times, fluidity)/d(parameters), through jacfwd and grad alike."""
     def series(p):
         cs = jc.Prony(p[0], p[1:4], p[4:7], 0.3).creep_series()
-        return jnp.concatenate([cs.glassy[None], cs.strengths, cs.times, cs.fluidity[None]])
+        return jnp.concatenate([cs.glassy[None], cs.strengths, cs.times,
+                                cs.fluidity[None]])
 
     p = jnp.array([1.0, 0.5, 2.0, 1.2, 0.1, 1.0, 7.0])
     jac = jax.jit(jax.jacfwd(series))(p)
@@ -353,7 +376,8 @@ def test_gradients_of_creep_series():
     np.testing.assert_allclose(jac, jac_rev, rtol=1e-12, atol=1e-14)
     h = 1e-6
     fd = np.stack(
-        [(series(p.at[i].add(h * p[i])) - series(p.at[i].add(-h * p[i]))) / (2 * h * p[i]) for i in range(7)],
+        [(series(p.at[i].add(h * p[i])) - series(p.at[i].add(-h * p[i])))
+         / (2 * h * p[i]) for i in range(7)],
         axis=1,
     )
     np.testing.assert_allclose(jac, fd, rtol=1e-6, atol=1e-6 * np.abs(fd).max())
@@ -362,7 +386,8 @@ def test_gradients_of_creep_series():
 def test_gradient_at_a_zero_arm():
     """g_k = 0 is allowed; d J / d g_k there matches a one-sided difference."""
     t = 0.7
-    f = jax.jit(lambda gk: jc.Prony(1.0, jnp.stack([gk, 1.0, 0.3]), [0.3, 2.0, 0.05], 0.3).creep(t))
+    f = jax.jit(lambda gk: jc.Prony(1.0, jnp.stack([gk, 1.0, 0.3]), [0.3, 2.0, 0.05],
+                                    0.3).creep(t))
     grad = float(jax.grad(f)(0.0))
     h = 1e-5
     fd = (-3 * f(0.0) + 4 * f(h) - f(2 * h)) / (2 * h)
@@ -376,7 +401,8 @@ def test_vmap_and_jit_construction():
 
     @jax.jit
     def zener_creep(r):
-        return jc.Zener(mu_inf=1.93e6, mu_0=1.93e6 / r, tau=0.01, poisson=0.3).creep(t * 0.01)
+        return jc.Zener(mu_inf=1.93e6, mu_0=1.93e6 / r, tau=0.01,
+                        poisson=0.3).creep(t * 0.01)
 
     batched = jax.vmap(zener_creep)(ratios)
     for k, r in enumerate(ratios):
@@ -394,9 +420,11 @@ def test_vmap_and_jit_construction():
         expect = jc.Prony(1.0, gs[k], tau, 0.3).creep(t)
         np.testing.assert_allclose(creep[k], expect, rtol=1e-13)
 
-    fc = jax.jit(jax.vmap(lambda j: jc.Prony.from_creep(0.9, j, [0.5, 4.0], 0.3).relaxation(t)))
+    fc = jax.jit(jax.vmap(
+        lambda j: jc.Prony.from_creep(0.9, j, [0.5, 4.0], 0.3).relaxation(t)))
     out = fc(jnp.array([[0.2, 0.3], [0.1, 0.0]]))
-    np.testing.assert_allclose(out[1], jc.Prony.from_creep(0.9, [0.1, 0.0], [0.5, 4.0], 0.3).relaxation(t))
+    np.testing.assert_allclose(
+        out[1], jc.Prony.from_creep(0.9, [0.1, 0.0], [0.5, 4.0], 0.3).relaxation(t))
 
     mx = jax.vmap(lambda eta: jc.Maxwell(2.0, eta, 0.3).creep(t))(jnp.array([1.0, 2.0]))
     np.testing.assert_allclose(mx[1], 0.5 + t / 2.0)
@@ -409,7 +437,8 @@ def test_vmap_and_jit_construction():
 
 def test_float32():
     f32 = jnp.float32
-    mat = jc.Prony(f32(1.0), jnp.array([0.5, 2.0, 1.2], f32), jnp.array([0.1, 1.0, 7.0], f32), 0.3)
+    mat = jc.Prony(f32(1.0), jnp.array([0.5, 2.0, 1.2], f32),
+                   jnp.array([0.1, 1.0, 7.0], f32), 0.3)
     cs = mat.creep_series()
     assert cs.strengths.dtype == jnp.float32
     ref = jc.Prony(1.0, [0.5, 2.0, 1.2], [0.1, 1.0, 7.0], 0.3)
@@ -445,7 +474,8 @@ def test_float32():
         (lambda: jc.Prony.from_creep(1.0, [0.3], [0.0], 0.3), "tau"),
         (lambda: jc.Prony.from_creep(np.inf, [0.3], [1.0], 0.3), "j_inf"),
         (lambda: jc.Prony.from_creep(1.0, [0.3], [1.0, 2.0], 0.3), "tau"),
-        (lambda: jc.Prony.from_creep(1.0, [0.3], [1.0], 0.3, fluidity=-1.0), "fluidity"),
+        (lambda: jc.Prony.from_creep(1.0, [0.3], [1.0], 0.3, fluidity=-1.0),
+         "fluidity"),
         (lambda: jc.Prony.from_creep(1.0, [0.3], [1.0], 2.0), "poisson"),
     ],
 )
@@ -460,12 +490,15 @@ def test_bad_input(build, match):
         (lambda v: jc.Maxwell(1.0, v, 0.3), 1.0, -1.0, "viscosity"),
         (lambda v: jc.Zener(1.0, v, 1.0, 0.3), 0.5, 2.0, "mu_0"),
         (lambda v: jc.Prony(1.0, jnp.stack([v, 1.0]), [1.0, 2.0], 0.3), 1.0, -1.0, "g"),
-        (lambda v: jc.Prony(1.0, [1.0, 1.0], jnp.stack([v, 2.0]), 0.3), 3.0, 2.0, "tau"),
-        (lambda v: jc.Prony.from_creep(v, [0.3, 0.3], [1.0, 2.0], 0.3), 0.9, 0.5, "j_inf"),
+        (lambda v: jc.Prony(1.0, [1.0, 1.0], jnp.stack([v, 2.0]), 0.3), 3.0, 2.0,
+         "tau"),
+        (lambda v: jc.Prony.from_creep(v, [0.3, 0.3], [1.0, 2.0], 0.3), 0.9, 0.5,
+         "j_inf"),
     ],
 )
 def test_bad_traced_input(build, good, bad, match):
-    """Inside jit the checks are eqx.error_if: they raise when the result is computed."""
+    """Inside jit the checks are eqx.error_if: they raise when the result is
+    computed."""
     f = jax.jit(lambda v: build(v).creep(jnp.asarray([0.0, 1.0])))
     assert np.all(np.isfinite(np.asarray(f(jnp.asarray(good)))))
     with pytest.raises(Exception, match=match):

@@ -1,4 +1,5 @@
-"""Normal contact: Hertz validation, convergence, invariants, control modes, bad input."""
+"""Normal contact: Hertz validation, convergence, invariants, control modes, bad
+input."""
 
 import jax
 import jax.numpy as jnp
@@ -17,17 +18,21 @@ def hertz_solve(n, *, width=4.0, periodic=False, dtype=jnp.float64, **kwargs):
     grid = jc.Grid((n, n), jnp.asarray(width * A_HZ, dtype), periodic=periodic)
     material = jc.Elastic(jnp.asarray(G, dtype), jnp.asarray(NU, dtype))
     sol = jc.solve_normal(
-        grid, jc.Sphere(jnp.asarray(R, dtype)), material, force=jnp.asarray(W, dtype), **kwargs
+        grid, jc.Sphere(jnp.asarray(R, dtype)), material, force=jnp.asarray(W, dtype),
+        **kwargs
     )
     return grid, sol
 
 
 def contact_radius_along_axes(grid, contact):
-    """Half the extent of the contact along the x and y axes through the centre [length]."""
+    """Half the extent of the contact along the x and y axes through the centre
+    [length]."""
     dx, dy = (float(d) for d in grid.spacing)
     nx, ny = grid.shape
-    along_x = np.asarray(contact)[:, ny // 2 - 1 : ny // 2 + 1].any(axis=1).sum() * dx / 2
-    along_y = np.asarray(contact)[nx // 2 - 1 : nx // 2 + 1, :].any(axis=0).sum() * dy / 2
+    along_x = (np.asarray(contact)[:, ny // 2 - 1 : ny // 2 + 1].any(axis=1).sum()
+               * dx / 2)
+    along_y = (np.asarray(contact)[nx // 2 - 1 : nx // 2 + 1, :].any(axis=0).sum()
+               * dy / 2)
     return along_x, along_y
 
 
@@ -84,7 +89,8 @@ def test_load_and_displacement_control_agree():
     sol_dc = jc.solve_normal(grid, jc.Sphere(R), material, approach=sol_lc.approach)
     assert bool(sol_dc.converged)
     assert abs(float(sol_dc.normal_force) / W - 1) < 1e-6
-    np.testing.assert_allclose(sol_dc.pressure, sol_lc.pressure, atol=1e-6 * float(HERTZ.peak_pressure))
+    np.testing.assert_allclose(sol_dc.pressure, sol_lc.pressure,
+                               atol=1e-6 * float(HERTZ.peak_pressure))
     assert np.array_equal(np.asarray(sol_dc.contact), np.asarray(sol_lc.contact))
 
 

@@ -76,7 +76,8 @@ def test_tables_and_hertz(run):
 
 def test_maxwell_creep_and_surface(run):
     _, v = run
-    fig4, fig5, fig7 = v["Fig. 4"]["values"], v["Fig. 5"]["values"], v["Fig. 7"]["values"]
+    fig4, fig5, fig7 = (v["Fig. 4"]["values"], v["Fig. 5"]["values"],
+                        v["Fig. 7"]["values"])
     # 16^2: a x1.41 against Lee-Radok's x1.44, u_z x2.10; the surface from the
     # tractions closes the gap in the contact to ~1e-8 of the approach.
     assert abs(fig4["radius_growth"] - fig4["lee_radok_growth"]) < 0.1

@@ -1,4 +1,5 @@
-"""Property-based tests (hypothesis): physical laws that hold for every admissible input.
+"""Property-based tests (hypothesis): physical laws that hold for every admissible
+input.
 
 Every test draws a few parameter sets (`max_examples` is small, `deadline=None`: the
 first example compiles) and checks a law with a stated tolerance:
@@ -22,7 +23,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 
 # hypothesis imports this module (libcst) only to report a failure, and libcst triggers
@@ -70,7 +72,7 @@ def assert_complementarity(sol, w, rtol=1e-8):
     assert np.sum(p * np.abs(gap)) * float(grid().cell_area) <= 10 * rtol * w * delta
 
 
-# ---------------------------------------------------------------------------------------
+# --------------------------------------------------------------------------------------
 # Normal contact: complementarity, balance, scaling laws.
 
 
@@ -105,7 +107,8 @@ def test_scaling_loads_and_moduli_together(lam, load):
     base = normal(load * W0, G0, NU0)
     scaled = normal(lam * load * W0, lam * G0, NU0)
     p0 = np.asarray(base.pressure)
-    np.testing.assert_allclose(np.asarray(scaled.pressure) / lam, p0, atol=1e-6 * p0.max())
+    np.testing.assert_allclose(np.asarray(scaled.pressure) / lam, p0,
+                               atol=1e-6 * p0.max())
     np.testing.assert_allclose(float(scaled.approach), float(base.approach), rtol=1e-7)
     np.testing.assert_array_equal(np.asarray(scaled.contact), np.asarray(base.contact))
 
@@ -120,7 +123,8 @@ def test_cube_root_law_is_exact_on_the_grid(length, load):
     base = normal(load * W0, G0, NU0)
     big = normal(load * W0 * length**3, G0, NU0, scale=length)
     p0 = np.asarray(base.pressure)
-    np.testing.assert_allclose(np.asarray(big.pressure) / length, p0, atol=1e-6 * p0.max())
+    np.testing.assert_allclose(np.asarray(big.pressure) / length, p0,
+                               atol=1e-6 * p0.max())
     np.testing.assert_allclose(float(big.approach) / length**2, float(base.approach),
                                rtol=1e-7)
     np.testing.assert_array_equal(np.asarray(big.contact), np.asarray(base.contact))
@@ -149,10 +153,11 @@ def test_unit_invariance_metres_millimetres(load, g):
     p = np.asarray(si.pressure)
     np.testing.assert_allclose(np.asarray(mm.pressure) * 1e6, p, atol=1e-6 * p.max())
     np.testing.assert_allclose(float(mm.approach) * 1e-3, float(si.approach), rtol=1e-7)
-    np.testing.assert_allclose(float(mm.normal_force), float(si.normal_force), rtol=1e-12)
+    np.testing.assert_allclose(float(mm.normal_force), float(si.normal_force),
+                               rtol=1e-12)
 
 
-# ---------------------------------------------------------------------------------------
+# --------------------------------------------------------------------------------------
 # Friction: one coupled ("full") scene structure, loaded in x or in y.
 
 TIMES = jnp.arange(3.0)
@@ -178,9 +183,9 @@ def rotate(f):
     return np.swapaxes(f, -1, -2)[..., ::-1, :]
 
 
-# nu >= 0.1 and mu >= 0.2: the coupled first step (W applied at once, F = 0) with nu = 0,
-# mu = 0.1 does not converge in max_rounds = 100 rounds (~60 s at n = 16; flagged, see
-# test_stress.py::test_coupled_one_step_low_friction_is_flagged).
+# nu >= 0.1 and mu >= 0.2: the coupled first step (W applied at once, F = 0) with
+# nu = 0, mu = 0.1 does not converge in max_rounds = 100 rounds (~60 s at n = 16;
+# flagged, see test_stress.py::test_coupled_one_step_low_friction_is_flagged).
 FRICTION_CASES = dict(
     nu=st.floats(0.1, 0.5), mu=st.floats(0.2, 0.6), ratio=st.floats(0.0, 0.85)
 )
@@ -202,7 +207,8 @@ def test_friction_balance_coulomb_and_rotation(nu, mu, ratio):
         assert p.min() >= 0
         assert np.all(q <= mu * p * (1 + 1e-6) + 1e-12 * p.max())  # Coulomb cone
         slip = sol.contact & ~sol.stick
-        np.testing.assert_allclose(q[slip], mu * p[slip], rtol=1e-5)  # slip: on the cone
+        # slip: on the cone
+        np.testing.assert_allclose(q[slip], mu * p[slip], rtol=1e-5)
         assert np.all(q[~sol.contact] == 0)
     # A y-load gives the x-load result rotated by 90 degrees (the shear vector rotates
     # with it: (q_x, q_y) -> (-q_y, q_x)).
@@ -217,14 +223,15 @@ def test_friction_balance_coulomb_and_rotation(nu, mu, ratio):
     np.testing.assert_allclose(sx.shear[:, 1], -sx.shear[:, 1, :, ::-1], atol=scale)
 
 
-# ---------------------------------------------------------------------------------------
+# --------------------------------------------------------------------------------------
 # Elastic limit of every viscoelastic material (the normal-only time stepper).
 
 VISCO_TIMES = jnp.linspace(0.0, 1.0, 11)  # nt = 11 as in test_stress (shared program)
 
 
 def visco(material, loads):
-    scene = jc.Scene(grid(), jc.Sphere(R), material, VISCO_TIMES, normal=jc.Force(loads))
+    scene = jc.Scene(grid(), jc.Sphere(R), material, VISCO_TIMES,
+                     normal=jc.Force(loads))
     return jax.tree_util.tree_map(np.asarray, jc.solve(scene))
 
 

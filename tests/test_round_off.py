@@ -8,9 +8,11 @@ import pytest
 import jaxcontact as jc
 from jaxcontact._solver.residual import masked_mean
 
+
 # The frictional scene: Zener mu_inf/mu_0 = 3, tau = 0.01 s, nu 0.3, full
 # coupling, mu 0.3, R = 10 mm, W = 0.15 N, a displacement ramp to 25 um; here on a
-# grid of 2.4 mm (16^2, 6 steps by default; the 32^2 x 11 in the slow suite). Units: (metres, newtons) per unit of length, force.
+# grid of 2.4 mm (16^2, 6 steps by default; the 32^2 x 11 in the slow suite).
+# Units: (metres, newtons) per unit of length, force.
 UNITS = {"SI": (1.0, 1.0), "mm/N/MPa": (1e-3, 1.0), "um/uN/MPa": (1e-6, 1e-6)}
 
 
@@ -58,7 +60,8 @@ def test_float32_coupled_scene_costs_the_same_in_every_unit_system(n, steps):
     for name, (length, force) in UNITS.items():
         fx = np.asarray(sols[name].tangential_force[:, 0], np.float64) * force
         fx_si = np.asarray(sols["SI"].tangential_force[:, 0], np.float64)
-        np.testing.assert_allclose(fx, fx_si, rtol=1e-4, atol=1e-4 * np.abs(fx_si).max())
+        np.testing.assert_allclose(fx, fx_si, rtol=1e-4,
+                                   atol=1e-4 * np.abs(fx_si).max())
         approach = np.asarray(sols[name].approach, np.float64) * length
         np.testing.assert_allclose(approach, np.asarray(sols["SI"].approach), rtol=1e-4)
 

@@ -11,7 +11,6 @@ import importlib.util
 import sys
 from pathlib import Path
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest

@@ -12,7 +12,8 @@ import jaxcontact as jc
 def _scene():
     grid = jc.Grid((16, 16), 2e-3)
     material = jc.Zener(mu_inf=1.93e6, mu_0=1.93e6 / 4, tau=0.01, poisson=0.3)
-    return jc.Scene(grid, jc.Sphere(10e-3), material, jnp.linspace(0.0, 0.02, 4), jc.Force(0.05))
+    return jc.Scene(grid, jc.Sphere(10e-3), material, jnp.linspace(0.0, 0.02, 4),
+                    jc.Force(0.05))
 
 
 def test_progress_callback_sees_every_step_in_order_and_changes_nothing():
@@ -21,7 +22,8 @@ def test_progress_callback_sees_every_step_in_order_and_changes_nothing():
     reported = jc.solve(_scene(), progress=lambda k, n: seen.append((int(k), int(n))))
     jax.block_until_ready(reported.pressure)
     assert seen == [(k, 4) for k in range(4)]
-    np.testing.assert_array_equal(np.asarray(plain.pressure), np.asarray(reported.pressure))
+    np.testing.assert_array_equal(np.asarray(plain.pressure),
+                                  np.asarray(reported.pressure))
 
 
 # Redundant: tests/test_cli.py asserts the same stderr lines (CLI: progress=True).
@@ -52,7 +54,8 @@ def test_preconditioner_changes_the_path_not_the_solution(friction):
     assert bool(np.all(plain.converged)) and bool(np.all(pre.converged))
     peak = float(np.max(plain.pressure))
     np.testing.assert_allclose(pre.pressure, plain.pressure, atol=1e-7 * peak)
-    np.testing.assert_allclose(pre.shear, plain.shear, atol=1e-7 * max(friction, 1e-3) * peak)
+    np.testing.assert_allclose(pre.shear, plain.shear,
+                               atol=1e-7 * max(friction, 1e-3) * peak)
     np.testing.assert_allclose(pre.approach, plain.approach, rtol=1e-8)
 
 

@@ -72,10 +72,12 @@ def test_no_import_cycle_in_the_package():
 
 
 def test_no_tuning_history_in_the_package():
-    """Measurement history ("N -> M iterations") lives in benchmarks/notes, not in code."""
+    """Measurement history ("N -> M iterations") lives in benchmarks/notes, not in
+    code."""
     pattern = re.compile(r"[0-9] *-> *[0-9]")
     found = [f"{p.name}:{i + 1}" for p in PACKAGE.rglob("*.py")
-             for i, line in enumerate(p.read_text().splitlines()) if pattern.search(line)]
+             for i, line in enumerate(p.read_text().splitlines())
+             if pattern.search(line)]
     assert not found, found
 
 
@@ -156,7 +158,8 @@ def test_a_non_converged_adjoint_is_reported():
                          jc.Force(W), x=jc.Force(0.5 * MU * W), friction=mu,
                          coupling="full")
         adjoint = jc.ImplicitAdjoint(max_steps=1, restart=1)
-        return jc.solve(scene, adjoint=adjoint, throw=throw).tangential_displacement[0, 0]
+        return jc.solve(scene, adjoint=adjoint,
+                        throw=throw).tangential_displacement[0, 0]
 
     with pytest.raises(Exception, match="adjoint"):
         jax.block_until_ready(jax.grad(f)(MU, True))
@@ -195,7 +198,8 @@ def test_no_sliding_flag_without_friction_concrete_or_traced():
                         x=jc.Displacement(jnp.linspace(0.0, 2e-6, 3)), friction=mu)
 
     concrete = jc.solve(scene(0.0))
-    batched = jax.vmap(lambda mu: jc.solve(scene(mu), throw=False))(jnp.array([0.0, MU]))
+    batched = jax.vmap(lambda mu: jc.solve(scene(mu), throw=False))(
+        jnp.array([0.0, MU]))
     assert not np.any(np.asarray(concrete.sliding))
     assert not np.any(np.asarray(batched.sliding))
     assert np.all(np.asarray(batched.converged))
@@ -214,7 +218,8 @@ def test_incompressible_coupled_scene_solves_as_uncoupled(coupling):
 
     def solve(c, **y):
         return jc.solve(jc.Scene(grid, jc.Sphere(R), jc.Elastic(G, 0.5), times,
-                                 jc.Force(W), x=jc.Displacement(jnp.linspace(0, 4e-6, 4)),
+                                 jc.Force(W),
+                                 x=jc.Displacement(jnp.linspace(0, 4e-6, 4)),
                                  friction=MU, coupling=c, **y))
 
     sol = solve(coupling)
@@ -260,8 +265,8 @@ def test_a_solved_direction_with_no_input_is_held():
     assert float(jnp.abs(free.tangential_force[:, 1]).max()) <= 1e-8 * MU * W
     # The same program: equal to round-off (XLA may compile the two calls with
     # different fusions), far inside the solver's tolerance above.
-    np.testing.assert_allclose(np.asarray(jc.solve(held).pressure), np.asarray(ref.pressure),
-                               rtol=0, atol=1e-12 * p_max)
+    np.testing.assert_allclose(np.asarray(jc.solve(held).pressure),
+                               np.asarray(ref.pressure), rtol=0, atol=1e-12 * p_max)
 
 
 def test_a_load_above_the_limit_slides_with_another_direction_held():

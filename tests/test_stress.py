@@ -1,5 +1,5 @@
-"""Stress tests: extreme but legal inputs. Every step converges or is flagged; no NaN; no
-hang (every loop is bounded by `max_steps`); where a reference exists the answer is
+"""Stress tests: extreme but legal inputs. Every step converges or is flagged; no NaN;
+no hang (every loop is bounded by `max_steps`); where a reference exists the answer is
 checked against it.
 
 Each case is classified by `outcome()`:
@@ -15,11 +15,11 @@ piecewise-constant scheme is unstable for a stiff Zener solid at coarse steps. T
 scalar recursion `sum_n J(t_k - t_n) d_n = f_k` of a Zener solid has its one pole at
 `z = 1 / (1 - r (1 - exp(-dt / tau)))` (`r = mu_inf / mu_0`): an alternating mode
 grows by `s = r (1 - exp(-dt / tau)) - 1` per step when `s > 0`, so the scheme is
-unstable when `r (1 - exp(-dt / tau)) > 2` (the same analysis for Maxwell: `dt > 2 tau`). The steps still report
-`converged=True` (each elastic step IS solved); the tractions jump by up to the peak
-pressure from step to step. The piecewise-linear scheme is stable in the same cases.
-Those cases are `xfail` here (strict): they are silently wrong, and they are counted as
-failures in the stress matrix.
+unstable when `r (1 - exp(-dt / tau)) > 2` (the same analysis for Maxwell:
+`dt > 2 tau`). The steps still report `converged=True` (each elastic step IS solved);
+the tractions jump by up to the peak pressure from step to step. The piecewise-linear
+scheme is stable in the same cases. Those cases are `xfail` here (strict): they are
+silently wrong, and they are counted as failures in the stress matrix.
 
 Grids are 16 x 16 (32 x 32 for the rough surface) so that the default run stays short;
 long cases (Nt = 2000, coupled gross sliding, float32 viscoelastic, Maxwell to 10 tau)
@@ -39,7 +39,8 @@ import jaxcontact as jc
 
 
 def solve_flagged(scene, **options):
-    """`jc.solve` returning its flags: this matrix records failures, it does not raise."""
+    """`jc.solve` returning its flags: this matrix records failures, it does not
+    raise."""
     return jc.solve(scene, throw=False, **options)
 
 
@@ -116,7 +117,7 @@ def check_creep(sol, material, times, rtol_approach):
     return err
 
 
-# ---------------------------------------------------------------------------------------
+# --------------------------------------------------------------------------------------
 # Zener stiffness ratio from 1.01 to 100, Maxwell to 10 tau.
 
 ZENER_RATIOS = (1.01, 2.0, 10.0, 100.0)
@@ -180,7 +181,8 @@ def test_constant_scheme_stability_criterion():
             diff = np.abs(const.pressure[5:] - linear.pressure[5:]).max()
             diff /= linear.pressure.max()
             s = alternation(ratio, dt_tau)
-            case = f"r={ratio}, dt/tau={dt_tau}: s={s:.2f}, constant vs linear {diff:.3f}"
+            case = (f"r={ratio}, dt/tau={dt_tau}: s={s:.2f}, constant vs linear "
+                    f"{diff:.3f}")
             assert warned == (s > 1), case
             if s > 1.2:
                 assert diff > 0.3, case
@@ -196,14 +198,15 @@ def test_maxwell_to_ten_relaxation_times():
     times = jnp.linspace(0.0, 10 * tau, 21)  # dt = 0.5 tau < 2 tau: stable
     grid = jc.Grid((N, N), 2 * 1.3 * 11 ** (1 / 3) * A0)
     for scheme in ("constant", "linear"):
-        sol = as_np(solve_flagged(jc.Scene(grid, jc.Sphere(R), material, times, jc.Force(W)),
-                             scheme=scheme))
+        sol = as_np(solve_flagged(jc.Scene(grid, jc.Sphere(R), material, times,
+                                           jc.Force(W)),
+                                  scheme=scheme))
         assert outcome(sol) == "pass"
         check_creep(sol, material, np.asarray(times), rtol_approach=0.05)
         assert jumps(sol.pressure) < 0.05
 
 
-# ---------------------------------------------------------------------------------------
+# --------------------------------------------------------------------------------------
 # Coarse and fine time steps.
 
 
@@ -216,7 +219,8 @@ def test_coarse_steps_linear_scheme():
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="known issue: constant scheme, r=4, dt=0.75 tau: s=1.11")
+@pytest.mark.xfail(strict=True,
+                   reason="known issue: constant scheme, r=4, dt=0.75 tau: s=1.11")
 def test_coarse_steps_constant_scheme():
     sol, material, times, _ = creep_step(4.0, 5, "constant")
     assert outcome(sol) == "pass"
@@ -236,7 +240,7 @@ def test_fine_steps(scheme):
     assert seconds < 300
 
 
-# ---------------------------------------------------------------------------------------
+# --------------------------------------------------------------------------------------
 # Loads from 1e-6 to 1e6 times nominal; float32.
 
 LOAD_SCALES = 10.0 ** np.arange(-6, 7, 2)
@@ -276,7 +280,8 @@ def test_float32_normal():
         assert sol.pressure.dtype == f32
         assert outcome(sol) == "pass"
         np.testing.assert_allclose(float(sol.normal_force), w, rtol=1e-5)
-        np.testing.assert_allclose(float(sol.approach), float(hertz.approach), rtol=0.03)
+        np.testing.assert_allclose(float(sol.approach), float(hertz.approach),
+                                   rtol=0.03)
 
 
 @pytest.mark.slow
@@ -295,10 +300,11 @@ def test_float32_viscoelastic():
     np.testing.assert_allclose(sol32.approach, sol64.approach, rtol=1e-4)
     # float32 solves to rtol 1e-5 on the gap; the pressure follows to ~3e-4 (measured
     # 2.8e-4 of the peak at 16 x 16).
-    np.testing.assert_allclose(sol32.pressure, sol64.pressure, atol=1e-3 * sol64.pressure.max())
+    np.testing.assert_allclose(sol32.pressure, sol64.pressure,
+                               atol=1e-3 * sol64.pressure.max())
 
 
-# ---------------------------------------------------------------------------------------
+# --------------------------------------------------------------------------------------
 # Rough surfaces with many contact islands.
 
 
@@ -340,7 +346,7 @@ def test_rough_surface_many_islands(seed):
     np.testing.assert_allclose(gap, heights + u - float(sol.approach), atol=1e-9 * rms)
 
 
-# ---------------------------------------------------------------------------------------
+# --------------------------------------------------------------------------------------
 # Contact that reaches the domain boundary: flagged, not silently wrong.
 
 
@@ -360,7 +366,7 @@ def test_creep_to_the_boundary_is_flagged():
     assert outcome(sol) == "flagged"
 
 
-# ---------------------------------------------------------------------------------------
+# --------------------------------------------------------------------------------------
 # Bounded failure: max_steps.
 
 
@@ -377,7 +383,7 @@ def test_max_steps_bounds_the_time_to_flag():
     assert outcome(sol) == "flagged"
 
 
-# ---------------------------------------------------------------------------------------
+# --------------------------------------------------------------------------------------
 # Increasing tangential displacement through gross sliding (paper Figs. 23-27).
 
 
@@ -393,7 +399,8 @@ def test_tangential_displacement_through_gross_sliding(coupling):
     nt = 13
     deltas = np.linspace(0.0, 2 * slide, nt)
     scene = jc.Scene(
-        jc.Grid((12, 12), 4 * a), jc.Sphere(R), jc.Elastic(g, NU), jnp.arange(float(nt)),
+        jc.Grid((12, 12), 4 * a), jc.Sphere(R), jc.Elastic(g, NU),
+        jnp.arange(float(nt)),
         normal=jc.Force(np.full(nt, W)), x=jc.Displacement(deltas), friction=mu,
         coupling=coupling,
     )
@@ -421,7 +428,8 @@ def test_coupled_one_step_low_friction_is_flagged():
     a = float(jc.Hertz(R, W, MU_INF, 0.0).contact_radius)
     scene = jc.Scene(
         jc.Grid((N, N), 4 * a), jc.Sphere(R), jc.Elastic(MU_INF, 0.0), jnp.arange(3.0),
-        normal=jc.Force(np.full(3, W)), x=jc.Force(np.zeros(3)), y=jc.Force(np.zeros(3)),
+        normal=jc.Force(np.full(3, W)), x=jc.Force(np.zeros(3)),
+        y=jc.Force(np.zeros(3)),
         friction=0.1, coupling="full",
     )
     start = time.perf_counter()
@@ -440,6 +448,7 @@ def test_coupled_one_step_low_friction_is_flagged():
     q = np.hypot(sol.shear[:, 0], sol.shear[:, 1])
     ok = q <= 0.1 * sol.pressure * (1 + 1e-6) + 1e-12 * sol.pressure.max()
     assert np.all(ok[sol.converged])
-    print("converged", sol.converged, "rounds", sol.rounds, "iterations", sol.iterations,
+    print("converged", sol.converged, "rounds", sol.rounds, "iterations",
+          sol.iterations,
           "cone violation", (q - 0.1 * sol.pressure).max() / sol.pressure.max(),
           f"{seconds:.0f} s")

@@ -1,7 +1,8 @@
 """Subsurface stresses (`jc.subsurface_stress`): closed-form cell coefficients against
 quadrature, the Hertz axis (Huber / Johnson eq. 3.45), tau_1 = 0.31 p0 at z = 0.48 a,
 a sliding Hertz contact (Hamilton & Goodman 1966 surface stresses; Cerruti quadrature
-on the axis), Holl's rectangle, boundary conditions at z = 0, traced and float32 paths."""
+on the axis), Holl's rectangle, boundary conditions at z = 0, traced and float32
+paths."""
 
 import jax
 import jax.numpy as jnp
@@ -124,7 +125,8 @@ def test_holl_uniform_rectangle_under_centre():
 
 def test_hertz_axis_huber():
     """Along the axis of a Hertz contact (Johnson 1985, eq. 3.45):
-    s_z = -p0 / (1 + z^2/a^2), s_r = -p0 [(1+nu)(1 - (z/a) atan(a/z)) - 1/(2(1+z^2/a^2))].
+    s_z = -p0 / (1 + z^2/a^2),
+    s_r = -p0 [(1+nu)(1 - (z/a) atan(a/z)) - 1/(2(1+z^2/a^2))].
     Odd n puts a cell centre on the axis."""
     n = 129
     grid, p, _ = _hertz_grid(n)
@@ -193,7 +195,8 @@ def test_sliding_hertz_surface_and_axis():
     s_x = -pi (4 + nu) mu p0 x / (8 a), s_y = -3 pi nu mu p0 x / (8 a), added to the
     Hertz surface stresses (Johnson eq. 3.41). On the axis the friction part is
     s_xz(z) = -(3/2) mu p0 z int_0^a sqrt(1 - r^2/a^2) r^3 / (r^2 + z^2)^(5/2) dr
-    (Cerruti's point-force s_xz = -3 Q x^2 z / (2 pi rho^5) integrated by quadrature)."""
+    (Cerruti's point-force s_xz = -3 Q x^2 z / (2 pi rho^5) integrated by
+    quadrature)."""
     n, mu = 129, 0.25
     grid, p, shear = _hertz_grid(n, mu=mu)
     depths = np.array([0.0, 0.25, 0.5, 1.0])

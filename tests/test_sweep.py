@@ -50,7 +50,8 @@ def assert_matches(out, ref):
     p, p_ref = np.asarray(out["pressure"]), ref["pressure"]
     scale = np.max(p_ref, axis=(1, 2, 3), keepdims=True)
     assert np.max(np.abs(p - p_ref) / scale) < 1e-10
-    np.testing.assert_allclose(out["normal_force"], ref["normal_force"], rtol=1e-10, atol=0)
+    np.testing.assert_allclose(out["normal_force"], ref["normal_force"], rtol=1e-10,
+                               atol=0)
     np.testing.assert_allclose(out["approach"], ref["approach"], rtol=1e-10, atol=0)
 
 

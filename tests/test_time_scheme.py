@@ -22,7 +22,8 @@ from jaxcontact._history import constant_scheme_amplification
 
 R, W, G, NU = 10e-3, 0.15, 1.93e6, 0.3
 A0 = float(jc.Hertz(R, W, G, NU).contact_radius)
-TAU = 0.01  # s, the Zener creep (retardation) time: J(t) = J_inf - (J_inf - J_0) e^(-t/tau)
+# s, the Zener creep (retardation) time: J(t) = J_inf - (J_inf - J_0) e^(-t/tau)
+TAU = 0.01
 MATERIAL = jc.Zener(mu_inf=G, mu_0=G / 10, tau=TAU, poisson=NU)
 
 

@@ -1,4 +1,5 @@
-"""Core viscoelastic checks of `jc.solve` (Lee-Radok creep, relaxation, history paths)."""
+"""Core viscoelastic checks of `jc.solve` (Lee-Radok creep, relaxation, history
+paths)."""
 
 import jax.numpy as jnp
 import numpy as np
@@ -80,8 +81,8 @@ def test_relaxation_force_follows_relaxation_modulus():
 # solves (quick); the recursion treats the 3 traction components alike.
 @pytest.mark.slow  # redundant: recursion vs direct sum, quick in test_viscoelastic
 def test_recursive_and_direct_history_agree_through_solves():
-    material = jc.Prony(g_inf=1.93e6, g=jnp.array([3.86e6, 1e6]), tau=jnp.array([0.1, 0.02]),
-                        poisson=0.3)
+    material = jc.Prony(g_inf=1.93e6, g=jnp.array([3.86e6, 1e6]),
+                        tau=jnp.array([0.1, 0.02]), poisson=0.3)
     grid = jc.Grid((48, 48), 3e-3)
     times = jnp.linspace(0.0, 0.3, 16)
     scene = jc.Scene(grid, jc.Sphere(10e-3), material, times=times,
@@ -106,4 +107,5 @@ def test_zener_without_relaxation_is_elastic():
     elastic = jc.Elastic(1.93e6, 0.3)
     sz = jc.solve(jc.Scene(grid, jc.Sphere(10e-3), zener, **common))
     se = jc.solve(jc.Scene(grid, jc.Sphere(10e-3), elastic, **common))
-    np.testing.assert_allclose(sz.pressure, se.pressure, rtol=0, atol=1e-7 * float(se.pressure.max()))
+    np.testing.assert_allclose(sz.pressure, se.pressure, rtol=0,
+                               atol=1e-7 * float(se.pressure.max()))

@@ -1,4 +1,5 @@
-"""The abstract material: a linear (visco)elastic half-space with constant Poisson ratio."""
+"""The abstract material: a linear (visco)elastic half-space with constant Poisson
+ratio."""
 
 import abc
 from typing import NamedTuple
@@ -40,7 +41,8 @@ class CreepSeries(NamedTuple):
 
 
 class AbstractMaterial(eqx.Module):
-    """A linear viscoelastic, isotropic half-space with a time-independent Poisson ratio.
+    """A linear viscoelastic, isotropic half-space with a time-independent Poisson
+    ratio.
 
     Because Poisson's ratio is constant, every surface influence kernel is the elastic
     kernel for unit shear modulus times ONE scalar function of time: the shear creep
@@ -115,8 +117,8 @@ def check_in_dtype(material: AbstractMaterial, dtype, span) -> None:
             if hasattr(leaf, "dtype") and not np.isfinite(np.asarray(leaf)).all():
                 raise ValueError(
                     f"material {key}={np.asarray(fields[key]).tolist()!r} overflows in "
-                    f"{name} (the grid's dtype, which the solve uses): restate the scene "
-                    "in other units or solve in float64"
+                    f"{name} (the grid's dtype, which the solve uses): restate the "
+                    "scene in other units or solve in float64"
                 )
     try:
         with jax.ensure_compile_time_eval():

@@ -24,7 +24,8 @@ class Elastic(AbstractMaterial):
     def __init__(self, shear_modulus, poisson):
         shear_modulus = _validate.positive("shear_modulus", shear_modulus)
         self.shear_modulus = _validate.scalar("shear_modulus", shear_modulus)
-        self.poisson = _validate.scalar("poisson", _validate.poisson_ratio("poisson", poisson))
+        self.poisson = _validate.scalar(
+            "poisson", _validate.poisson_ratio("poisson", poisson))
 
     def relaxation(self, t: ArrayLike) -> Float[Array, "..."]:
         return jnp.broadcast_to(self.shear_modulus, jnp.shape(t))

@@ -30,9 +30,11 @@ class Maxwell(AbstractMaterial):
         shear_modulus = _scalar(
             "shear_modulus", _arg(_validate.positive, "shear_modulus", shear_modulus)
         )
-        viscosity = _scalar("viscosity", _arg(_validate.positive, "viscosity", viscosity))
+        viscosity = _scalar(
+            "viscosity", _arg(_validate.positive, "viscosity", viscosity))
         self.shear_modulus, self.viscosity = _promote(shear_modulus, viscosity)
-        self.poisson = _scalar("poisson", _arg(_validate.poisson_ratio, "poisson", poisson))
+        self.poisson = _scalar(
+            "poisson", _arg(_validate.poisson_ratio, "poisson", poisson))
 
     @property
     def relaxation_time(self) -> Float[Array, ""]:

@@ -8,8 +8,8 @@ Laplace transforms (`^`, variable `s`) of a relaxation series
     s G^(s) = g_inf + sum_i g_i s tau_i / (1 + s tau_i)            (= Q(s))
     s J^(s) = J(0) + sum_j c_j / (1 + s lambda_j) + phi / s         (= 1 / Q(s))
 
-so the retardation rates `1 / lambda_j` are the roots `u = -s > 0` of `Q(-u) = 0`, and the
-strengths the residues of `1 / Q` there. With the rates `r_i = 1 / tau_i`,
+so the retardation rates `1 / lambda_j` are the roots `u = -s > 0` of `Q(-u) = 0`, and
+the strengths the residues of `1 / Q` there. With the rates `r_i = 1 / tau_i`,
 
     h(u) = Q(-u) = g_inf + sum_i g_i u / (u - r_i)
 
@@ -20,9 +20,9 @@ exactly when `g_inf = 0`: a fluid, `phi = 1 / sum_i g_i tau_i`). The strengths a
 
 The creep -> relaxation direction is the same problem with the roles exchanged:
 `h(u) = J(0) - sum_i w_i / (u - r_i)` with poles at the retardation rates (weights
-`w_i = j_i r_i`, plus a pole at `u = 0` of weight `phi` for a fluid) increases between its
-poles; one relaxation rate lies above each pole, and the relaxation strengths are again
-`1 / (u S(u))` with `S = h'`.
+`w_i = j_i r_i`, plus a pole at `u = 0` of weight `phi` for a fluid) increases between
+its poles; one relaxation rate lies above each pole, and the relaxation strengths are
+again `1 / (u S(u))` with `S = h'`.
 
 The roots are found to machine precision by a bracketed (safeguarded) Newton iteration
 with a fixed number of steps on gradient-stopped inputs; the derivatives then come from
@@ -51,7 +51,7 @@ from .base import AbstractMaterial, CreepSeries
 _ITERATIONS = 100
 
 
-# ---------------------------------------------------------------------------------------
+# --------------------------------------------------------------------------------------
 # Validation helpers shared by the viscoelastic materials.
 
 
@@ -142,7 +142,7 @@ def _distinct(name: str, tau: jax.Array) -> jax.Array:
     )
 
 
-# ---------------------------------------------------------------------------------------
+# --------------------------------------------------------------------------------------
 # The secular equation.
 
 
@@ -307,7 +307,7 @@ def relaxation_series(j_inf, j, tau, fluidity=None):
     return g_inf, g, tau_relax
 
 
-# ---------------------------------------------------------------------------------------
+# --------------------------------------------------------------------------------------
 # The material.
 
 
@@ -360,7 +360,8 @@ class Prony(AbstractMaterial):
         self.g_inf = g_inf
         self.g = g
         self.tau = tau
-        self.poisson = _scalar("poisson", _arg(_validate.poisson_ratio, "poisson", poisson))
+        self.poisson = _scalar(
+            "poisson", _arg(_validate.poisson_ratio, "poisson", poisson))
 
     @classmethod
     def from_creep(cls, j_inf, j, tau, poisson, fluidity=None) -> "Prony":
@@ -381,8 +382,8 @@ class Prony(AbstractMaterial):
           given, the result has `n + 1` relaxation modes (and `g_inf = 0` when it is
           `> 0`); when `None`, `n` modes.
 
-        The instantaneous compliance `J(0) = j_inf - sum(j)` must be `> 0`. The result is
-        exact (to rounding) and differentiable with respect to every argument (except
+        The instantaneous compliance `J(0) = j_inf - sum(j)` must be `> 0`. The result
+        is exact (to rounding) and differentiable with respect to every argument (except
         with respect to `fluidity` exactly at `fluidity = 0`, where the form changes).
         """
         j_inf, j, tau = _series_arrays(
@@ -400,7 +401,8 @@ class Prony(AbstractMaterial):
             lambda: f"j_inf={np.asarray(j_inf).item()!r}, j={np.asarray(j)!r}",
         )
         if fluidity is not None:
-            fluidity = _scalar("fluidity", _arg(_validate.non_negative, "fluidity", fluidity))
+            fluidity = _scalar(
+                "fluidity", _arg(_validate.non_negative, "fluidity", fluidity))
             (fluidity,) = _promote(fluidity.astype(j_inf.dtype))
         _arg(_validate.poisson_ratio, "poisson", poisson)
         g_inf, g, tau_relax = relaxation_series(j_inf, j, tau, fluidity)

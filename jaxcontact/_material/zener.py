@@ -21,8 +21,8 @@ class Zener(AbstractMaterial):
     - `mu_0`: the LONG-TIME (relaxed) shear modulus `G(inf)` [stress], in `(0, mu_inf]`.
     - `tau`: the RETARDATION (creep) time [time], > 0. The relaxation time is
       `tau * mu_0 / mu_inf`, shorter by the ratio `mu_inf / mu_0` (paper section 4.1;
-      the paper's Table 2 calls `tau` a relaxation time, but Eqs. 29-30, which this class
-      follows, make it the retardation time).
+      the paper's Table 2 calls `tau` a relaxation time, but Eqs. 29-30, which this
+      class follows, make it the retardation time).
     - `poisson`: Poisson's ratio, in `(-1, 0.5]`.
 
     Moduli are TRUE shear moduli (the paper's Table 2 lists `mu_inf = 3.86 MPa`, twice
@@ -45,12 +45,14 @@ class Zener(AbstractMaterial):
             (mu_0, mu_inf),
             lambda mu_0, mu_inf: mu_0 <= mu_inf,
             "<= mu_inf (the instantaneous modulus)",
-            lambda: f"mu_0={np.asarray(mu_0).item()!r}, mu_inf={np.asarray(mu_inf).item()!r}",
+            lambda: (f"mu_0={np.asarray(mu_0).item()!r}, "
+                     f"mu_inf={np.asarray(mu_inf).item()!r}"),
         )
         self.mu_inf = mu_inf
         self.mu_0 = mu_0
         self.tau = tau
-        self.poisson = _scalar("poisson", _arg(_validate.poisson_ratio, "poisson", poisson))
+        self.poisson = _scalar(
+            "poisson", _arg(_validate.poisson_ratio, "poisson", poisson))
 
     @property
     def relaxation_time(self) -> Float[Array, ""]:
@@ -64,9 +66,11 @@ class Zener(AbstractMaterial):
 
     def creep(self, t: ArrayLike) -> Float[Array, "..."]:
         t = jnp.asarray(t)
-        return 1 / self.mu_inf + (1 / self.mu_0 - 1 / self.mu_inf) * -jnp.expm1(-t / self.tau)
+        return (1 / self.mu_inf
+                + (1 / self.mu_0 - 1 / self.mu_inf) * -jnp.expm1(-t / self.tau))
 
     def creep_series(self) -> CreepSeries:
         glassy = 1 / self.mu_inf
         strength = (1 / self.mu_0 - 1 / self.mu_inf).reshape(1)
-        return CreepSeries(glassy, strength, self.tau.reshape(1), jnp.zeros_like(glassy))
+        return CreepSeries(glassy, strength, self.tau.reshape(1),
+                           jnp.zeros_like(glassy))

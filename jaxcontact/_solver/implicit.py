@@ -159,7 +159,8 @@ def _residual(operator, config, frozen, x, theta):
         # with other round-off (vmap under XLA's unoptimised code generation).
         surface = (h + history[2] + uz).ravel()
         touching = surface[jnp.argmin(surface)] / kz
-        f_dz = jnp.where(any_contact, (area * jnp.sum(p) - w_target) / scale, dz - touching)
+        f_dz = jnp.where(any_contact, (area * jnp.sum(p) - w_target) / scale,
+                         dz - touching)
     else:
         f_dz = dz - w_target / kz
     if config.nd == 0:
@@ -186,7 +187,8 @@ def _residual(operator, config, frozen, x, theta):
     f_dt = []
     for d in range(nd):
         if config.tangential_force_control[d]:
-            f_dt.append(jnp.where(any_contact, (area * jnp.sum(q[d]) - t_target[d]) / scale,
+            f_dt.append(jnp.where(any_contact,
+                                  (area * jnp.sum(q[d]) - t_target[d]) / scale,
                                   dt[d] - fixed[1 + d]))
         else:
             f_dt.append(dt[d] - t_target[d] / kt)
@@ -198,8 +200,10 @@ def _residual(operator, config, frozen, x, theta):
         # direction = mean over the contact of u_t + history_t (the rigid-body drift has
         # no stick cell to fix it), of a displacement-controlled one its target.
         _, direction = applied_load(t_target, config.tangential_force_control)
-        f_q_slide = jnp.where(contact[None], q - bound[None] * direction[:, None, None], q)
-        mean = jnp.sum(jnp.where(contact[None], base, 0), axis=(1, 2)) / jnp.maximum(n_contact, 1)
+        f_q_slide = jnp.where(contact[None],
+                              q - bound[None] * direction[:, None, None], q)
+        mean = (jnp.sum(jnp.where(contact[None], base, 0), axis=(1, 2))
+                / jnp.maximum(n_contact, 1))
         f_dt_slide = jnp.where(jnp.asarray(config.tangential_force_control),
                                dt - mean / kt, f_dt)
         f_q = jnp.where(sliding, f_q_slide, f_q)
@@ -297,7 +301,8 @@ def _set_adjoint_scaled(a_full, active, load_control, a, b_bar, z_bar, guess, rt
         return v, r, d, rz_new, it + 1
 
     z = apply_m(r)
-    v, r, _, _, _ = jax.lax.while_loop(cond, body, (v, r, z, jnp.sum(r * z), jnp.array(0)))
+    v, r, _, _, _ = jax.lax.while_loop(cond, body,
+                                       (v, r, z, jnp.sum(r * z), jnp.array(0)))
     converged = jnp.sum(r * r) <= limit
     mu = mu0 + v
     a_mu = a_full(mu)
@@ -405,14 +410,16 @@ def _uncoupled_x_adjoint(operator, config, frozen, theta, x_bar, guess, rtol, ma
     if config.precondition:
         precondition = shear_x_preconditioner(operator, poisson)
     lam_q, lam_dt, ok_t = _set_adjoint(
-        a_full, stick, config.tangential_force_control[0], _area_scale(operator, contact),
-        q_bar[0], dt_bar[0], guess[1][0], rtol, maxiter, precondition)
+        a_full, stick, config.tangential_force_control[0],
+        _area_scale(operator, contact), q_bar[0], dt_bar[0], guess[1][0], rtol,
+        maxiter, precondition)
     lam_q, lam_dt = lam_q[None], lam_dt[None]
     zero = jnp.zeros((), p_bar.dtype)
     coupling = residual_vjp((jnp.zeros_like(p_bar), lam_q, zero, lam_dt))
     (lam_p, _, lam_dz, _), ok_n = _normal_adjoint(
         operator, config, frozen, theta,
-        (p_bar - coupling[0], q_bar, dz_bar - coupling[2], dt_bar), guess, rtol, maxiter)
+        (p_bar - coupling[0], q_bar, dz_bar - coupling[2], dt_bar), guess, rtol,
+        maxiter)
     return (lam_p, lam_q, lam_dz, lam_dt), ok_t & ok_n
 
 
@@ -586,22 +593,23 @@ def _make_attach(config: _Spec, adjoint: ImplicitAdjoint, rtol: float, throw: bo
         return x, slip, jax.tree.map(jnp.zeros_like, seed)
 
     def fwd(x, slip, frozen, theta, operator, seed):
-        return attach(x, slip, frozen, theta, operator, seed), (x, frozen, theta, operator)
+        return (attach(x, slip, frozen, theta, operator, seed),
+                (x, frozen, theta, operator))
 
     def bwd(saved, cotangents):
         x, frozen, theta, operator = saved
         x_bar, slip_bar, guess = cotangents
         kt = frozen[5]
         if config.nd > 0:
-            _, slip_vjp = jax.vjp(lambda x, theta: _slip_out(operator, config, x, theta, kt),
-                                  x, theta)
+            _, slip_vjp = jax.vjp(
+                lambda x, theta: _slip_out(operator, config, x, theta, kt), x, theta)
             x_extra, theta_extra = slip_vjp(slip_bar)
             x_bar = jax.tree.map(jnp.add, x_bar, x_extra)
         else:
             theta_extra = None
 
-        _, residual_vjp = jax.vjp(lambda x, theta: _residual(operator, config, frozen, x, theta),
-                                  x, theta)
+        _, residual_vjp = jax.vjp(
+            lambda x, theta: _residual(operator, config, frozen, x, theta), x, theta)
 
         def by_gmres():
             precondition = _transposed_preconditioner(operator, config, frozen, theta,
@@ -782,7 +790,8 @@ def differentiable_step(
 
 
 def empty_seed(pressure, shear):
-    """The adjoint seed of a first step: zeros shaped like `(p, q, delta_z, delta_t)`."""
+    """The adjoint seed of a first step: zeros shaped like
+    `(p, q, delta_z, delta_t)`."""
     dtype = pressure.dtype
     return (jnp.zeros_like(pressure), jnp.zeros_like(shear), jnp.zeros((), dtype),
             jnp.zeros(shear.shape[:1], dtype))

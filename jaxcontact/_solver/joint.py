@@ -1,4 +1,5 @@
-r"""`JointPCG`: one coupled frictional step solved jointly, one projected CG over `(p, q)`.
+r"""`JointPCG`: one coupled frictional step solved jointly, one projected CG over
+`(p, q)`.
 
 The normal and tangential problems are iterated together with the full symmetric
 half-space operator
@@ -285,7 +286,8 @@ class _JointOperator:
         return jnp.fft.irfft(field, n=self.ly, axis=-1)[..., :self.ny]
 
     def apply(self, x):
-        """Displacements `(u_z, u_t...)` of the traction `(p, q...)`: one application."""
+        """Displacements `(u_z, u_t...)` of the traction `(p, q...)`: one
+        application."""
         return self.inverse(self.k_full(self.forward(x)))
 
     def exact(self, x):

@@ -55,7 +55,8 @@ class LoadByDisplacement(AbstractStepSolver):
     def supports(self, problem):
         if problem.nd == 0 or not any(problem.tangential_force_control):
             return "no tangential direction is load-controlled"
-        return self.solver.supports(self._subproblem(problem, problem.tangential_target))
+        return self.solver.supports(
+            self._subproblem(problem, problem.tangential_target))
 
     def step_limit(self) -> int:
         return self.evaluations - 1  # the first evaluation is `init`'s
@@ -132,7 +133,8 @@ class LoadByDisplacement(AbstractStepSolver):
         # smaller overall residual (a failure reports its best attempt).
         better = (ex < s.best_err) | (
             jnp.isinf(s.best_err) & jnp.isinf(ex)
-            & (jnp.maximum(r.residual, rawx) < jnp.maximum(s.best.residual, s.best_raw)))
+            & (jnp.maximum(r.residual, rawx)
+               < jnp.maximum(s.best.residual, s.best_raw)))
         best = jax.tree_util.tree_map(lambda n, o: jnp.where(better, n, o), r, s.best)
         flipped = jnp.sign(fx) != jnp.sign(fb)
         # Bracketed: a sign change moves a to the old b; otherwise a is kept and its

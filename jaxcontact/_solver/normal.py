@@ -205,9 +205,10 @@ class NormalOperator:
         """The same operator for another effective gap (a coupled round's), in the
         float32 phase if `low` (default: this one's phase)."""
         return NormalOperator(
-            self.apply_fn, h, self.target, self.cell_area, load_control=self.load_control,
-            rtol=self.rtol, self_compliance=self.k00, precondition=self.precondition,
-            apply_low=self.apply_low, low=self.low if low is None else low)
+            self.apply_fn, h, self.target, self.cell_area,
+            load_control=self.load_control, rtol=self.rtol, self_compliance=self.k00,
+            precondition=self.precondition, apply_low=self.apply_low,
+            low=self.low if low is None else low)
 
     def rescale(self, p):
         total = self.cell_area * jnp.sum(p)

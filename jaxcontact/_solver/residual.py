@@ -50,7 +50,8 @@ def gap_residual(raw, contact, load_control: bool, target, scale):
     violation = jnp.where(contact, g, jnp.minimum(g, 0))
     num = jnp.sqrt(jnp.sum(violation * violation))
     residual = jnp.where(num == 0, 0.0, num / jnp.where(scale > 0, scale, jnp.inf))
-    # A non-zero violation with zero displacement (p = 0 but penetration) is not converged.
+    # A non-zero violation with zero displacement (p = 0 but penetration) is not
+    # converged.
     residual = jnp.where((num > 0) & (scale == 0), jnp.inf, residual)
     return g, delta, residual
 

@@ -62,7 +62,8 @@ class _RoundsOperator:
         self.any_force = any(problem.tangential_force_control)
 
     def apply_tangential(self, q):
-        return self.operator.apply_tangential(q, self.problem.poisson, blocks=self.blocks)
+        return self.operator.apply_tangential(q, self.problem.poisson,
+                                              blocks=self.blocks)
 
     def solve_normal(self, h_eff, p_start):
         p_start = jnp.asarray(p_start, self.dtype)

@@ -66,7 +66,8 @@ class TangentialOperator:
         self.nd = nd = b.shape[0]
         if precondition is not None and nd != 1:
             raise ValueError(
-                f"tangential_cg: an FFT precondition needs one shear component, got nd={nd}")
+                "tangential_cg: an FFT precondition needs one shear component, got "
+                f"nd={nd}")
         self.apply_fn, self.b, self.bound = apply_fn, b, bound
         self.dtype = b.dtype
         self.force_control = tuple(force_control)
@@ -92,7 +93,8 @@ class TangentialOperator:
         stick = self.stick_of(q)
         where = jnp.where(jnp.any(stick), stick, self.contact)
         count = jnp.sum(where)
-        deficit = _safe_div(self.target / self.cell_area - jnp.sum(q, axis=(1, 2)), count)
+        deficit = _safe_div(self.target / self.cell_area - jnp.sum(q, axis=(1, 2)),
+                            count)
         shift = jnp.where(self.force_mask, deficit[:, None, None] * where[None], 0.0)
         return project(q + shift, self.bound)
 
@@ -264,7 +266,8 @@ class TangentialCG(AbstractStepSolver):
             applications=s.applications)
 
     def postprocess(self, problem, k, s):
-        raise NotImplementedError("use solve_state: TangentialCG returns a TangentialState")
+        raise NotImplementedError(
+            "use solve_state: TangentialCG returns a TangentialState")
 
     def solve_state(self, k: TangentialOperator, q0) -> TangentialState:
         """Solve from the shear `q0` (projected and load-corrected first)."""
