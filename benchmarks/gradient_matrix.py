@@ -255,7 +255,7 @@ def _message(exc) -> str:
     if marker in text:
         text = text[text.rindex(marker) + len(marker):]
     lines = [line.strip() for line in text.strip().splitlines() if line.strip()]
-    return (lines[0] if lines else repr(exc))[:300]
+    return (lines[0] if lines else repr(exc))[:600]
 
 
 def _evaluate(case: Case, t0: float, h: float):

@@ -37,7 +37,23 @@ import gradient_matrix as gm  # noqa: E402
 KNOWN_KINKS = {
     "x/force-ramp/force_neg/zener/load/vmap",
     "full/force-constant/force_past/prony/friction/jit/periodic",
-}  # Neither is in the default slice now; the whole matrix may add more.
+    "x/force-ramp/force_neg/zener/friction/jit",
+}
+# Scenes refused, with the text their message must carry. The first two: the forward
+# fails under `jit` (the joint iteration stalls with one shear component near or past
+# mu W on a viscoelastic body; a concrete `jc.solve` re-solves with fallbacks), so the
+# gradient raises the forward's own message with the remedy (measured right with it).
+# The third: float32 at 0.997 mu W, whose adjoint stalls at rtol 1e-5; with
+# `ImplicitAdjoint(rtol=1e-4)` it gives -443.957 against float64's -444.011
+# (benchmarks/notes/gradient_matrix.md).
+KNOWN_REFUSALS = {
+    "x/force-ramp/force_near/zener/friction/jit":
+        "compile the fallback in with `solver=jc.Fallback(jc.JointPCG(), jc.Rounds())`",
+    "x/force-ramp/force_past/zener/friction/jit":
+        "compile the fallback in with `solver=jc.Fallback(jc.JointPCG(), jc.Rounds())`",
+    "full/force-constant/force_near/zener/friction/float32":
+        "or a looser `rtol`",
+}
 
 
 def _users_environment():
@@ -64,6 +80,10 @@ def _run(case, folder):
 
 
 def _assert_right(case, row):
+    if case.name in KNOWN_REFUSALS:
+        assert row["status"] == "refused", row
+        assert KNOWN_REFUSALS[case.name] in row["message"], row["message"]
+        return
     assert row["status"] != "refused", f"{case.name} raised: {row['message']}"
     g, cd = row["gradient"], row["cd"]
     tol = 1e-2 if case.mode == "float32" else 1e-5
