@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_cli import TINY_TOML
 
 import jaxcontact as jc
 from jaxcontact import _cli, _cli_fit
@@ -32,25 +33,8 @@ RELAX = DATA / "fmt-jpk-sr_cell1-0008.jpk-force"
 CREEP = DATA / "fmt-jpk-cc_pr14-polymergel-2021.06.30.jpk-force"
 
 # Elastic Hertz contact on 8 x 8 cells, one time point, with friction 0.3 (echoed).
-FRICTION_TOML = """
-name = "tiny"
-[grid]
-shape = [8, 8]
-size = 4e-3
-[indenter]
-type = "sphere"
-radius = 10e-3
-[material]
-type = "elastic"
-shear_modulus = 1.93e6
-poisson = 0.3
-[time]
-times = [0.0]
-[normal]
-force = 0.15
-[contact]
-friction = 0.3
-"""
+# test_cli's tiny elastic scene, with friction.
+FRICTION_TOML = TINY_TOML.format(name='"tiny"') + "[contact]\nfriction = 0.3\n"
 
 
 def _no_fit(*args, **kwargs):
