@@ -29,7 +29,8 @@ autodoc2_render_plugin = "myst"
 autodoc2_module_all_regexes = [r"jaxcontact"]
 autodoc2_hidden_objects = ["private", "dunder", "inherited"]
 # The private modules are analysed (to resolve __all__) but get no pages of their own.
-autodoc2_skip_module_regexes = [r"jaxcontact\._.*"]
+# The fitting package's public names are re-exported there too (jc.fit_afm_curve, ...).
+autodoc2_skip_module_regexes = [r"jaxcontact\._.*", r"jaxcontact\.fitting.*"]
 autodoc2_docstring_parser_regexes = [(r".*", "kidger_docstrings")]
 autodoc2_class_docstring = "merge"
 autodoc2_index_template = None

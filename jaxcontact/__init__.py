@@ -11,10 +11,6 @@ from ._analytic import Hertz as Hertz
 from ._analytic import LeeRadok as LeeRadok
 from ._cache import enable_compilation_cache as enable_compilation_cache
 from ._dataset import load as load
-from ._fit import IndentationData as IndentationData
-from ._fit import PronyFit as PronyFit
-from ._fit import fit_prony as fit_prony
-from ._fit import fit_prony_batch as fit_prony_batch
 from ._force_map import fit_force_map as fit_force_map
 from ._grid import Grid as Grid
 from ._indenter import AbstractIndenter as AbstractIndenter
@@ -52,6 +48,14 @@ from ._surface import surface_displacement as surface_displacement
 from ._sweep import sweep as sweep
 from ._validate import EdgeContactWarning as EdgeContactWarning
 from ._validate import TimeStepWarning as TimeStepWarning
+from .fitting.afm import AFMFit as AFMFit
+from .fitting.afm import AFMFitSettings as AFMFitSettings
+from .fitting.afm import fit_afm_curve as fit_afm_curve
+from .fitting.batch import fit_prony_batch as fit_prony_batch
+from .fitting.data import IndentationData as IndentationData
+from .fitting.fit import fit_prony as fit_prony
+from .fitting.options import FitOptions as FitOptions
+from .fitting.result import PronyFit as PronyFit
 
 
 __version__ = "0.1.0"
@@ -71,8 +75,10 @@ __all__ = [
     "AbstractStepSolver", "PolonskyKeer", "Rounds", "JointPCG", "Fallback",
     "LoadByDisplacement", "ImplicitAdjoint", "StepProblem", "StepGuess", "StepResult",
     # Analytic references, fitting, AFM files
-    "Hertz", "LeeRadok", "fit_prony", "fit_prony_batch", "IndentationData", "PronyFit",
+    "Hertz", "LeeRadok", "fit_prony", "fit_prony_batch", "FitOptions",
+    "IndentationData", "PronyFit",
     "read_afm",
+    "fit_afm_curve", "AFMFitSettings", "AFMFit",
     "fit_force_map",
     "AFMCurve",
     # Presets and warnings

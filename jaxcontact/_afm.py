@@ -95,7 +95,9 @@ class AFMCurve:
       (standard deviation of the approach before contact about the baseline).
     - `path`: the file (or `None`), `metadata`: afmformats' metadata dict.
     - `raw`: dict of the whole file's columns (`time`, `force`, `height`, `segment`
-      with -1 for pauses) for plots.
+      with -1 for pauses; `force_above_baseline` [N], the fitted baseline removed;
+      `kept_codes`, the segment codes kept; `contact_index`, the contact sample)
+      for plots and `with_contact`.
     - `contact_note`: how the contact point was found (`read_afm(contact=...)`).
     """
 
@@ -120,7 +122,7 @@ class AFMCurve:
         (dict segment name -> number of points, or one int for every segment), each
         segment is averaged in that many consecutive bins (log-spaced in time for the
         hold, where relaxation is fastest at its start; uniform elsewhere)."""
-        from ._fit import IndentationData
+        from .fitting import IndentationData
 
         t, f, d, s = self.resampled(n_samples)
         return IndentationData(t, force=f, depth=d)
@@ -179,6 +181,29 @@ class AFMCurve:
         changes of the signal, which is smooth at the sampling rate)."""
         x = self.force if kind == "force" else self.depth
         return float(np.median(np.abs(np.diff(x))) / (0.6745 * np.sqrt(2)))
+
+    def with_contact(self, index):
+        """This curve with the contact point moved to sample `index` of the file
+        (`raw["contact_index"]` is the current one): the force and depth zeroed
+        there, the baseline kept (a sensitivity study of the contact point).
+
+        **Raises:** `ValueError` when `index` is not on the approach or leaves fewer
+        than 4 samples in contact."""
+        code = self.raw["segment"]
+        app = np.flatnonzero(code == 0)
+        if not (isinstance(index, (int, np.integer)) and app[0] <= index <= app[-1]):
+            raise ValueError(f"index must be a sample index on the approach "
+                             f"({app[0]}..{app[-1]}), got {index!r}")
+        index = int(index)
+        offset = float(self.raw["force_above_baseline"][index])
+        return _curve_at_contact(
+            self.raw, index, offset, mode=self.mode,
+            spring_constant=self.spring_constant,
+            baseline_force=float(self.raw["force"][index]),
+            baseline_noise=self.baseline_noise,
+            path=self.path, metadata=self.metadata,
+            contact_note=f"moved to sample {index} (from "
+                         f"{self.raw['contact_index']}: {self.contact_note})")
 
     def scene_template(self, radius, *, n=32, poisson=0.5, size_factor=4.0):
         """A `jc.Scene` for `jc.fit_prony` on this curve: a sphere of `radius` [m], an
@@ -529,16 +554,29 @@ def read_afm(source, *, index=0, contact_index=None, baseline="constant",
     offset = 0.0  # force above the baseline at contact, removed ("viscoelastic")
     contact_note = ("given (contact_index)" if contact_index is not None else
                     "piecewise baseline + Hertz fit (Lin et al. 2007)")
+    piecewise_ic = ic
     if contact == "viscoelastic" and contact_index is None:
         ic, offset, contact_note = _refine_contact(
             time, force - f_base, height, code, ic, k, mode)
-    f0 = float(base(ic)) + offset
-    f_rel = force - f_base - offset
-    depth = (height[ic] - height) - f_rel / k
+    keep_codes = tuple(SEGMENT_NAMES.index(s) for s in segments)
+    raw = {"time": time, "force": force, "height": height, "segment": code,
+           "force_above_baseline": force - f_base, "kept_codes": keep_codes,
+           "piecewise_contact_index": int(piecewise_ic)}
+    return _curve_at_contact(raw, ic, offset, mode=mode, spring_constant=k,
+                             baseline_force=float(base(ic)) + offset,
+                             baseline_noise=noise, path=path, metadata=metadata,
+                             contact_note=contact_note)
 
-    # -- Kept samples ------------------------------------------------------------------
-    keep_code = np.isin(code, [SEGMENT_NAMES.index(s) for s in segments])
-    keep = keep_code & (np.arange(time.size) >= ic) & (code >= 0)
+
+def _curve_at_contact(raw, ic, offset, *, mode, spring_constant, baseline_force,
+                      baseline_noise, path, metadata, contact_note) -> "AFMCurve":
+    """The `AFMCurve` of a file's columns `raw` (see `AFMCurve.raw`) in contact from
+    sample `ic` on, the force measured from the baseline plus `offset` [N]."""
+    time, height, code = raw["time"], raw["height"], raw["segment"]
+    k = spring_constant
+    f_rel = raw["force_above_baseline"] - offset
+    depth = (height[ic] - height) - f_rel / k
+    keep = np.isin(code, raw["kept_codes"]) & (np.arange(time.size) >= ic) & (code >= 0)
     ret = np.flatnonzero(keep & (code == 2))
     if ret.size:
         # The model has no adhesion: stop where the retract loses contact.
@@ -557,11 +595,10 @@ def read_afm(source, *, index=0, contact_index=None, baseline="constant",
         spring_constant=k,
         contact_time=float(time[ic]),
         contact_height=float(height[ic]),
-        baseline_force=f0,
-        baseline_noise=noise,
+        baseline_force=baseline_force,
+        baseline_noise=baseline_noise,
         path=path,
         metadata=metadata,
-        raw={"time": time, "force": force, "height": height, "segment": code,
-             "contact_index": int(ic)},
+        raw={**raw, "contact_index": int(ic)},
         contact_note=contact_note,
     )

@@ -1,30 +1,36 @@
-"""`jaxcontact fit FILE... --radius R`: fit a Prony series to AFM indentation files.
+"""`jaxcontact fit FILE|FOLDER... --radius R`: Prony series fitted to AFM files.
 
-    jaxcontact fit FILE... --radius R [--arms N|auto] [--out DIR] [--n N]
+    jaxcontact fit FILE|FOLDER... --radius R [--arms N|auto] [--out DIR] [--n N]
                    [--poisson NU] [--baseline constant|linear] [--samples A,H,R]
                    [--segments approach,hold,retract] [--steps K]
                    [--contact viscoelastic|piecewise] [--start lee-radok|data]
-                   [--tau-range LO,HI|auto|none] [--no-check-grid] [--overwrite]
+                   [--tau-range LO,HI|auto|none] [--no-check-grid]
+                   [--no-analysis-uncertainty] [--overwrite]
 
-Each file is read by `jc.read_afm` (afmformats: `pip install "jaxcontact[afm]"`), its
-segments binned (`--samples`: points in the approach, hold and retract after contact),
-and `jc.fit_prony` fits the series through the full contact model (a sphere of radius
-`R` [m] on an `N x N` grid). Creep files (force clamp) fit the depth under the measured
-force; relaxation files (height clamp) the force under the measured depth. `--arms auto`
-fits 1 to 4 arms and keeps the converged one with the smallest BIC (AIC and BIC of
-every count are reported).
+Each file (a folder: every file in it that afmformats reads) is read by `jc.read_afm`
+(afmformats: `pip install "jaxcontact[afm]"`) and fitted by
+`jaxcontact.fitting.afm.fit_afm_curve`: the segments binned, `jc.fit_prony` through
+the full contact model (a sphere of radius `R` [m] on an `N x N` grid) for 1 to 3 arms
+(`--arms auto`, the converged fit with no parameter at a bound and the smallest BIC),
+the quality judged against the raw data's own noise, and the uncertainty extended by
+refits with the contact point moved by its uncertainty and with the grid's bias
+removed (`jaxcontact.fitting.uncertainty`). Creep files (force clamp) fit the depth
+under the measured force; relaxation files (height clamp) the force under the depth.
 
-Writes `DIR/STEM_fit.json` (parameters with Gauss-Newton standard deviations, the
-Young's moduli `E = 2 G (1 + nu)` beside the shear moduli, the residual RMS and noise
-estimate, convergence, contact point, units) and `DIR/STEM_fit.png` (data, model and
-residuals per segment). `STEM` is the file's name minus its final extension
-(`gel.001.jpk-force` -> `gel.001`); outputs already in `DIR` are refused before any fit
-unless `--overwrite` is given, and so are two files with the same stem. The residual is
-also given in units of the data's own noise (each bin mean's, from the raw curve's
-successive differences): about 1 where the model reproduces the data to the noise;
-and the model's discretisation error (the fitted curve on a grid twice as fine;
-`--no-check-grid` skips it). Exit status: 0 on success,
-1 when a fit did not converge, 2 for bad input (the message names the bad value).
+Writes `DIR/STEM_fit.json` (Young's moduli `E = 2 G (1 + nu)` and shear moduli with
+their total standard deviation and its components, `E(t)` at the approach's duration,
+the apparent Hertz modulus of the approach, the quality verdict and flags, the contact
+point as time, height and force, units) and `DIR/STEM_fit.png` (data, model,
+residuals, `E(t)`); with several files also `DIR/fit_summary.csv` (a row a file).
+`STEM` is the file's name minus its final extension (`gel.001.jpk-force` ->
+`gel.001`); outputs already in `DIR` are refused before any fit unless
+`--overwrite`, and so are two files with the same stem.
+
+Exit status: 0 when every fit is certified (converged) with nothing flagged; 1 when a
+fit did not converge or was flagged (the console and the JSON list the reasons: a
+systematic misfit, a parameter at a bound, the grid's bias above the noise, a
+contact point that could not be placed, an implausible radius); 2 for bad input (the
+message names the bad value).
 
 Compiled programs are cached on disk (`jc.enable_compilation_cache`: folder
 `JAXCONTACT_CACHE_DIR`, default `~/.cache/jaxcontact/xla`; `--no-cache` or
@@ -37,6 +43,7 @@ curve's maximum indentation depth warns (`radius_warning`: most likely a unit sl
 """
 
 import argparse
+import csv
 import json
 import math
 import sys
@@ -49,18 +56,10 @@ from ._cache import (
     enable_compilation_cache,
 )
 from ._cli_output import InputError, prepare_out
+from .fitting.afm import RADIUS_NOTE, RADIUS_WINDOW, radius_warning  # noqa: F401
 
 
-RADIUS_NOTE = ("the probe radius is an input (not in the file): absolute moduli scale "
-               "as radius^(-1/2); relaxation times and modulus ratios do not depend "
-               "on it")
-
-
-# Plausible probe radius / maximum indentation depth of a sphere: below 1e-2 the Hertz
-# contact radius sqrt(R d) would exceed 10 R (a sphere's is at most R); above 1e3 the
-# depth is under R / 1000, at the contact point's uncertainty. A unit slip of the
-# radius (um or nm read as m) is a factor 1e3-1e9, far outside.
-RADIUS_WINDOW = (1e-2, 1e3)
+SUMMARY = "fit_summary.csv"
 
 
 class _BadInput(InputError):
@@ -90,36 +89,32 @@ def _plan_outputs(files, out, overwrite) -> dict:
             raise _BadInput(f"{twin!r} and {path!r} would both write {stem}_fit.json: "
                             "fit them into different --out folders")
         stems[path] = stem
-    prepare_out(out, [name for s in stems.values() for name in fit_outputs(s)],
-                 overwrite)
+    names = [name for s in stems.values() for name in fit_outputs(s)]
+    prepare_out(out, names + ([SUMMARY] if len(stems) > 1 else []), overwrite)
     return stems
 
 
-def radius_warning(radius, depth):
-    """The warning text when the probe radius `radius` [m] is implausible against the
-    curve's maximum indentation depth `depth` [m], else None.
+def expand_inputs(paths) -> list:
+    """The files to fit: each path as given, a folder replaced by the files in it
+    (sorted) whose extension afmformats reads; `InputError` for a missing path or a
+    folder without such files."""
+    import afmformats
 
-    Plausible: `RADIUS_WINDOW[0] <= radius / depth <= RADIUS_WINDOW[1]`. Outside, the
-    text names the radius, the depth, the rule and, for a radius too large, the
-    reading in um, nm or mm that falls inside the window (the radius is read in m).
-    """
-    lo, hi = RADIUS_WINDOW
-    if not depth > 0:  # no indentation to compare with
-        return None
-    ratio = radius / depth
-    if lo <= ratio <= hi:
-        return None
-    text = (f"--radius {radius:g} m is {ratio:.3g} x the maximum indentation depth "
-            f"{depth:.3g} m; a spherical probe's radius is {lo:g} to {hi:g} x the "
-            "depth (below, its Hertz contact radius sqrt(R d) would exceed 10 R; "
-            "above, the depth is at the contact point's uncertainty)")
-    if ratio > hi:
-        for scale, unit in ((1e-6, "micrometres"), (1e-9, "nanometres"),
-                            (1e-3, "millimetres")):
-            if lo <= ratio * scale <= hi:
-                return (text + f": the radius is in metres; if {radius:g} was meant in "
-                        f"{unit}, pass --radius {radius * scale:g}")
-    return text + ": check the radius's unit (metres) and the contact point"
+    files = []
+    for p in map(Path, paths):
+        if p.is_dir():
+            found = sorted(f for f in p.iterdir() if f.is_file() and f.suffix.lower()
+                           in afmformats.formats.supported_extensions)
+            if not found:
+                known = ", ".join(afmformats.formats.supported_extensions)
+                raise _BadInput(f"the folder {str(p)!r} holds no file afmformats reads "
+                                f"({known})")
+            files.extend(map(str, found))
+        elif p.is_file():
+            files.append(str(p))
+        else:
+            raise _BadInput(f"no such file: {str(p)!r}")
+    return files
 
 
 def add_parser(sub):
@@ -127,16 +122,19 @@ def add_parser(sub):
     p = sub.add_parser("fit", help="fit a Prony series to AFM indentation files")
     add_cache_argument(p)
     p.add_argument("files", nargs="+", metavar="FILE",
-                   help="force-distance files afmformats reads (e.g. .jpk-force)")
+                   help="force-distance files afmformats reads (e.g. .jpk-force), or "
+                        "folders of them")
     p.add_argument("--radius", type=float, required=True,
                    help="probe (sphere) radius [m]")
-    p.add_argument("--arms", default="2",
-                   help="number of Prony arms (1..8), or 'auto' (1..4, smallest BIC)")
+    p.add_argument("--arms", default="auto",
+                   help="number of Prony arms (1..8), or 'auto' (default: 1..3, the "
+                        "converged fit with no parameter at a bound and the smallest "
+                        "BIC)")
     p.add_argument("--out", default="jaxcontact-fit", help="output directory")
     p.add_argument("--overwrite", action="store_true",
                    help="replace outputs of the same name already in --out (default: "
                         "refuse, before any fit)")
-    p.add_argument("--n", type=int, default=24, help="grid cells per side (default 24)")
+    p.add_argument("--n", type=int, default=32, help="grid cells per side (default 32)")
     p.add_argument("--poisson", type=float, default=0.5,
                    help="Poisson's ratio, fixed (default 0.5: incompressible)")
     p.add_argument("--baseline", default="constant", choices=("constant", "linear"),
@@ -155,15 +153,21 @@ def add_parser(sub):
                         "report the difference (the model's discretisation error; "
                         "default on)")
     p.add_argument("--tau-range", default="auto", metavar="LO,HI|auto|none",
-                   help="bounds on the relaxation times [s]; 'auto' (default): 1e-3 x "
-                        "the binned data's shortest time step to its duration (a time "
-                        "longer than the data is degenerate with g_inf); 'none'")
+                   help="bounds on the relaxation times [s]; 'auto' (default): the raw "
+                        "sampling step (a faster time is not sampled) to the data's "
+                        "duration (a slower one is degenerate with g_inf); 'none'")
+    p.add_argument("--analysis-uncertainty", action=argparse.BooleanOptionalAction,
+                   default=True,
+                   help="add to each standard deviation the parameters' shift when the "
+                        "contact point moves by its uncertainty and when the grid's "
+                        "bias is removed (three refits from the result; default on)")
     p.add_argument("--steps", type=int, default=200,
                    help="bound on the Levenberg-Marquardt steps (default 200)")
     p.add_argument("--samples", default="8,24,8", metavar="A,H,R",
                    help="points after binning in the approach, hold and retract")
-    p.add_argument("--segments", default="approach,hold,retract",
-                   help="segments to fit (approach is always needed)")
+    p.add_argument("--segments", default="approach,hold",
+                   help="segments to fit (approach is always needed; default approach,"
+                        "hold: the retract's unloading is fitted only when asked)")
     return p
 
 
@@ -213,220 +217,48 @@ def _check(args):
         raise _BadInput(f"--segments must list approach and any of hold, retract; got "
                         f"{args.segments!r}")
     for f in args.files:
-        if not Path(f).is_file():
+        if not Path(f).exists():
             raise _BadInput(f"no such file: {f!r}")
     return samples, segments
 
 
-def _information(fit, n_params):
-    """AIC and BIC of a least-squares fit with Gaussian noise of unknown variance."""
-    import numpy as np
+def _settings(args, samples, segments):
+    from .fitting.afm import AFMFitSettings
 
-    n = fit.residual.shape[0]
-    ssr = float(np.sum(fit.residual**2))
-    base = n * math.log(max(ssr, 1e-300) / n)
-    return base + 2 * n_params, base + n_params * math.log(n)
-
-
-def _correlation(cov):
-    """Correlation matrix of a covariance (nested lists; None where undetermined)."""
-    import numpy as np
-
-    d = np.sqrt(np.diag(cov))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        c = cov / np.outer(d, d)
-    return [[float(v) if np.isfinite(v) else None for v in row] for row in c]
-
-
-def _choose(fits):
-    """The arm count with the smallest BIC among the converged fits (an unconverged
-    fit's BIC is not its model's: e.g. a second arm far slower than the hold,
-    degenerate with g_inf), among all when none converged. `fits`: {arms: (fit, aic,
-    bic)}."""
-    converged = [k for k in fits if fits[k][0].converged] or list(fits)
-    return min(converged, key=lambda k: fits[k][2])
+    return AFMFitSettings(
+        radius=args.radius, arms=args.arms if args.arms == "auto" else int(args.arms),
+        n=args.n, poisson=args.poisson, samples=tuple(samples),
+        segments=tuple(segments), tau_bounds=args.tau_bounds, start=args.start,
+        steps=args.steps, check_grid=args.check_grid,
+        analysis_uncertainty=args.analysis_uncertainty)
 
 
 def _fit_one(path, args, samples, segments):
-    import numpy as np
-
+    """`(report, fit, segment)` of one file (`fit_afm_curve`), the report extended by
+    the command's own settings."""
     import jaxcontact as jc
-    from jaxcontact._fit import lee_radok_start
+    from jaxcontact.fitting.afm import fit_afm_curve
 
     try:
         curve = jc.read_afm(path, baseline=args.baseline, segments=segments,
                             contact=args.contact)
     except (ValueError, TypeError) as exc:
         raise _BadInput(f"{path}: {exc}") from exc
-    radius_note = radius_warning(args.radius, float(np.max(curve.depth)))
-    if radius_note is not None:
-        warnings.warn(f"{path}: {radius_note}", UserWarning, stacklevel=2)
-    names = ("approach", "hold", "retract")
-    t, f, d, seg, counts = curve.resampled(dict(zip(names, samples, strict=True)),
-                                           return_counts=True)
-    data = jc.IndentationData(t, force=f, depth=d)
-    template = curve.scene_template(args.radius, n=args.n, poisson=args.poisson)
-    tau_bounds = args.tau_bounds
-    if tau_bounds == "auto":
-        steps = np.diff(t)
-        tau_bounds = (1e-3 * float(np.min(steps[steps > 0])), float(t[-1] - t[0]))
-    arm_counts = range(1, 5) if args.arms == "auto" else [int(args.arms)]
-    fits = {}
-    for k in arm_counts:
-        if t.size <= 2 * k + 2:
-            break
-        # bin means of `counts` raw samples: weights sqrt(counts) (inverse noise)
-        init = None
-        if args.start == "lee-radok":
-            try:
-                init = lee_radok_start(data, template, k, poisson=args.poisson,
-                                       weights=np.sqrt(counts))
-            except ValueError:  # too few loading samples: the default start
-                init = None
-        fit = jc.fit_prony(data, template, k, lm_steps=args.steps,
-                           weights=np.sqrt(counts), init=init,
-                           bounds={"tau": tau_bounds} if tau_bounds else None)
-        aic, bic = _information(fit, 1 + 2 * k)
-        fits[k] = (fit, aic, bic)
-    if not fits:
-        raise _BadInput(f"{path}: {t.size} samples are too few to fit")
-    best = _choose(fits)
-    fit = fits[best][0]
-    disc = None
-    if args.check_grid:
-        from ._fit import discretisation_error
-
-        disc = discretisation_error(fit, data, template)
-    m = fit.material
-
-    def entry(value, std_log):
-        value, std_log = float(value), float(std_log)
-        return {"value": value, "std": value * std_log if math.isfinite(std_log)
-                else None, "std_log": std_log if math.isfinite(std_log) else None}
-
-    g0 = float(m.g_inf) + float(np.sum(m.g))
-    parameters = {
-        "g_inf_Pa": entry(m.g_inf, fit.std["g_inf"]),
-        "g_Pa": [entry(v, s) for v, s in zip(np.asarray(m.g), fit.std["g"],
-                                              strict=True)],
-        "tau_s": [entry(v, s) for v, s in zip(np.asarray(m.tau), fit.std["tau"],
-                                               strict=True)],
-    }
-    rms = float(np.sqrt(np.mean(fit.residual**2)))
-    # The noise of each bin mean from the raw curve's own noise (independent of the
-    # fit), and the residual in units of it (1: the model is within the noise).
-    sigma = curve.noise(fit.kind) / np.sqrt(counts)
-    hold = seg == 1
-    chi = float(np.sqrt(np.mean((fit.residual / sigma) ** 2)))
-    chi_hold = float(np.sqrt(np.mean((fit.residual[hold] / sigma[hold]) ** 2))) if (
-        hold.any()) else None
-    # The issue's measure: the model on the RAW samples of the hold against their
-    # white noise (bin means weigh the first instants of the hold, where log-spaced
-    # bins hold a sample or two, as much as its last seconds).
-    _, raw_res, raw_seg = raw_residual(fit, curve, template)
-    raw_hold = raw_seg == 1
-    chi_raw = None
-    if raw_hold.any():
-        chi_raw = float(np.sqrt(np.mean(raw_res[raw_hold] ** 2))
-                        / curve.noise(fit.kind))
-    result = {
-        "file": str(path),
-        "mode": curve.mode,
-        "fitted": fit.kind,
-        "radius_m": args.radius,
-        "radius_note": RADIUS_NOTE,
-        "radius_warning": radius_note,
-        "poisson": args.poisson,
-        "tau_bounds_s": list(tau_bounds) if tau_bounds else None,
-        "grid": [args.n, args.n],
-        "arms": best,
-        "parameters": parameters,
-        "youngs_moduli": youngs_moduli(parameters, g0, args.poisson),
-        "log_parameter_names": list(fit.parameter_names),
-        "log_parameter_correlation": _correlation(fit.covariance),
-        "instantaneous_modulus_Pa": g0,
-        "ratios_g_over_g0": [float(v) / g0 for v in np.asarray(m.g)],
-        "residual_rms": rms,
-        "discretisation_rms": disc,
-        "discretisation_note": ("RMS change of the fitted model's curve on a grid "
-                                "twice as fine: a bias of the model, to compare with "
-                                "the residual and the noise"),
-        "noise_raw": curve.noise(fit.kind),
-        "residual_over_noise": chi,
-        "residual_over_noise_hold": chi_hold,
-        "hold_residual_over_noise_raw": chi_raw,
-        "hold_residual_note": ("RMS of the fitted model against the raw samples of "
-                               "the hold (at most 600, evenly thinned) over the raw "
-                               "curve's white noise (successive differences)"),
-        "contact": args.contact,
-        "contact_note": curve.contact_note,
-        "start": args.start,
-        "converged": bool(fit.converged),
-        "message": fit.message,
-        "information_criteria": {str(k): {"aic": v[1], "bic": v[2], "loss": v[0].loss,
-                                          "converged": bool(v[0].converged)}
-                                 for k, v in fits.items()},
-        "contact_time_s": curve.contact_time,
-        "spring_constant_N_per_m": curve.spring_constant,
-        "samples": int(t.size),
-        "units": {"time": "s", "force": "N", "depth": "m", "modulus": "Pa (shear)",
-                  "youngs_modulus": "Pa"},
-    }
-    return result, fit, seg
-
-
-def youngs_moduli(parameters, g0, poisson) -> dict:
-    """Young's moduli `E = 2 G (1 + nu)` [Pa] of the fitted shear moduli at the fixed
-    Poisson's ratio `poisson`: `E_inf_Pa` and `E_Pa` (entries as `parameters`'
-    `g_inf_Pa` and `g_Pa`: value, std, std_log) and `E_0_Pa`, the instantaneous
-    modulus from `g0` = g_inf + sum g [Pa]. Poisson's ratio is an input, not fitted:
-    the factor carries no uncertainty."""
-    factor = 2 * (1 + poisson)
-
-    def scaled(e):
-        return {"value": factor * e["value"],
-                "std": None if e["std"] is None else factor * e["std"],
-                "std_log": e["std_log"]}
-
-    return {
-        "E_inf_Pa": scaled(parameters["g_inf_Pa"]),
-        "E_Pa": [scaled(e) for e in parameters["g_Pa"]],
-        "E_0_Pa": factor * g0,
-        "poisson": poisson,
-        "note": (f"Young's moduli E = 2 G (1 + nu) at the given Poisson's ratio nu = "
-                 f"{poisson:g} (fixed); E_0 = 2 G_0 (1 + nu), G_0 = g_inf + sum g: the "
-                 "instantaneous modulus"),
-    }
-
-
-def raw_residual(fit, curve, template, *, max_samples=600):
-    """`(time, residual, segment)` of the fitted model against the RAW samples of an
-    `AFMCurve` (each segment thinned evenly to at most `max_samples`): one forward
-    solve of `fit.material` on the fit's grid, driven by the
-    raw force (creep) or depth (relaxation), from an unloaded start at `t = 0` as in
-    the fit. `residual` = model - data [N or m]."""
-    import jax.numpy as jnp
-    import numpy as np
-
-    import jaxcontact as jc
-
-    keep = np.zeros(curve.time.shape, bool)
-    for code in (0, 1, 2):
-        idx = np.flatnonzero(curve.segment == code)
-        keep[idx[:: max(1, -(-idx.size // max_samples))]] = True
-    t, f, d, s = (x[keep].copy() for x in (curve.time, curve.force, curve.depth,
-                                            curve.segment))
-    if t[0] <= 0:  # the contact sample: the model starts unloaded there
-        f[0], d[0] = 0.0, 0.0
-    else:
-        t, f, d, s = np.r_[0.0, t], np.r_[0.0, f], np.r_[0.0, d], np.r_[0, s]
-    normal = jc.Force(jnp.asarray(f)) if fit.kind == "depth" else jc.Displacement(
-        jnp.asarray(d))
-    scene = jc.Scene(template.grid, template.indenter, fit.material, jnp.asarray(t),
-                     normal)
-    sol = jc.solve(scene, scheme="linear", throw=False)
-    model = np.asarray(sol.approach if fit.kind == "depth" else sol.normal_force)
-    return t, model - (d if fit.kind == "depth" else f), s
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", UserWarning)
+        try:
+            result = fit_afm_curve(curve, _settings(args, samples, segments))
+        except ValueError as exc:
+            raise _BadInput(f"{path}: {exc}") from exc
+    for w in caught:  # re-issued with the file's name (one line each, by `main`)
+        warnings.warn(f"{path}: {w.message}", w.category, stacklevel=2)
+    report = result.report
+    report["file"] = str(path)
+    report["contact"] = args.contact
+    report["start"] = args.start
+    hold = report["residual_over_noise_raw"].get("hold")
+    report["hold_residual_over_noise_raw"] = hold
+    return report, result.fit, result.segment
 
 
 def _plot(fit, seg, result, path):
@@ -437,8 +269,12 @@ def _plot(fit, seg, result, path):
         import matplotlib.pyplot as plt
     except ImportError:
         return None
-    fig, (top, bottom) = plt.subplots(2, 1, figsize=(7, 6), sharex=True,
-                                      gridspec_kw={"height_ratios": [3, 1]})
+    import numpy as np
+
+    from .fitting.quality import relaxation_modulus
+
+    fig, (top, middle, bottom) = plt.subplots(3, 1, figsize=(7, 8.5),
+                                              gridspec_kw={"height_ratios": [3, 1, 2]})
     unit = "nN" if fit.kind == "force" else "um"
     scale = 1e9 if fit.kind == "force" else 1e6
     for code, (name, colour) in enumerate(zip(("approach", "hold", "retract"),
@@ -448,15 +284,35 @@ def _plot(fit, seg, result, path):
             continue
         top.plot(fit.times[sel], fit.target[sel] * scale, "o", ms=3, color=colour,
                  label=f"data ({name})")
-        bottom.plot(fit.times[sel], fit.residual[sel] * scale, "o", ms=3, color=colour)
+        middle.plot(fit.times[sel], fit.residual[sel] * scale, "o", ms=3,
+                    color=colour)
     top.plot(fit.times, fit.curve * scale, "k-", lw=1, label="model")
     top.set_ylabel(f"{fit.kind} [{unit}]")
+    q = result["quality"]
     top.set_title(f"{Path(result['file']).name}: {result['arms']} arm(s), "
-                  f"R = {result['radius_m']:g} m", fontsize=9)
+                  f"R = {result['radius_m']:g} m; quality: {q['verdict']}", fontsize=9)
     top.legend(fontsize=8)
-    bottom.axhline(0, color="k", lw=0.5)
-    bottom.set_ylabel(f"residual [{unit}]")
-    bottom.set_xlabel("time since contact [s]")
+    middle.axhline(0, color="k", lw=0.5)
+    middle.set_ylabel(f"residual [{unit}]")
+    middle.set_xlabel("time since contact [s]")
+    # E(t) = 2 (1 + nu) G(t): the fitted relaxation function, with the moduli AFM
+    # users compare (the apparent Hertz modulus of the approach, E at its duration).
+    e = result["youngs_moduli"]
+    factor = 2 * (1 + result["poisson"])
+    span = max(float(fit.times[-1]), 1e-9)
+    t = np.geomspace(span * 1e-4, span * 10, 200)
+    curve = [factor * relaxation_modulus(fit.material, v) for v in t]
+    bottom.semilogx(t, curve, "k-", lw=1, label="E(t) = 2 (1 + nu) G(t)")
+    bottom.axhline(result["apparent_hertz"]["E_Pa"], color="C3", ls="--", lw=1,
+                   label="apparent Hertz E (approach)")
+    bottom.plot([e["approach_time_s"]], [e["E_at_approach_Pa"]["value"]], "o",
+                color="C0", label="E at the approach's duration")
+    bottom.set_xlabel("t [s]")
+    bottom.set_ylabel("E(t) [Pa]")
+    right = bottom.secondary_yaxis("right", functions=(lambda x: x / factor,
+                                                       lambda x: x * factor))
+    right.set_ylabel("G(t) [Pa]")
+    bottom.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
@@ -472,8 +328,9 @@ def run_fit(args) -> int:
         except ImportError:
             raise _BadInput('reading AFM files needs afmformats: pip install '
                             '"jaxcontact[afm]"')
+        files = expand_inputs(args.files)
         out = Path(args.out)
-        stems = _plan_outputs(args.files, out, args.overwrite)
+        stems = _plan_outputs(files, out, args.overwrite)
         import jax
 
         jax.config.update("jax_enable_x64", True)
@@ -482,8 +339,8 @@ def run_fit(args) -> int:
         # same shapes (another file, the same --n and --samples) loads it instead.
         if not (args.no_cache or cache_disabled_by_environment()):
             enable_compilation_cache()
-        status = 0
-        for path in args.files:
+        status, rows = 0, []
+        for path in files:
             result, fit, seg = _fit_one(path, args, samples, segments)
             stem = stems[path]
             json_path = out / f"{stem}_fit.json"
@@ -491,51 +348,98 @@ def run_fit(args) -> int:
             result["plot"] = str(png) if png else None
             json_path.write_text(json.dumps(result, indent=2))
             _print(result, json_path)
-            if not result["converged"]:
+            rows.append(summary_row(result))
+            if result["flags"]:
                 status = 1
+        if len(files) > 1:
+            _write_summary(rows, out / SUMMARY)
         return status
     except InputError as exc:
         print(f"jaxcontact: error: {exc}", file=sys.stderr)
         return 2
 
 
-def _print(r, json_path):
-    p = r["parameters"]
+SUMMARY_COLUMNS = ("file", "mode", "arms", "quality", "flags", "E_0_Pa",
+                   "E_at_approach_Pa", "E_at_approach_std_Pa", "E_inf_Pa",
+                   "E_inf_std_Pa", "apparent_hertz_E_Pa", "taus_s", "contact_time_s")
 
-    def fmt(e):
-        return f"{e['value']:.4g} +- {e['std']:.2g}" if e["std"] is not None else (
-            f"{e['value']:.4g} +- inf")
 
-    print(f"{r['file']}: {r['mode']} ({r['fitted']} fitted), {r['arms']} arm(s), "
-          f"{r['samples']} samples, grid {r['grid'][0]}^2")
+def summary_row(r) -> dict:
+    """One file's row of `fit_summary.csv` (`SUMMARY_COLUMNS`)."""
     e = r["youngs_moduli"]
-    print(f"  shear moduli g [Pa]; Young's moduli E = 2 g (1 + nu) [Pa] at nu = "
-          f"{r['poisson']:g}")
-    print(f"  g_inf = {fmt(p['g_inf_Pa'])} Pa   E_inf = {fmt(e['E_inf_Pa'])} Pa")
+    return {
+        "file": r["file"], "mode": r["mode"], "arms": r["arms"],
+        "quality": r["quality"]["verdict"], "flags": len(r["flags"]),
+        "E_0_Pa": e["E_0_Pa"]["value"],
+        "E_at_approach_Pa": e["E_at_approach_Pa"]["value"],
+        "E_at_approach_std_Pa": e["E_at_approach_Pa"]["std"],
+        "E_inf_Pa": e["E_inf_Pa"]["value"], "E_inf_std_Pa": e["E_inf_Pa"]["std"],
+        "apparent_hertz_E_Pa": r["apparent_hertz"]["E_Pa"],
+        "taus_s": " ".join(f"{t['value']:.4g}" for t in r["parameters"]["tau_s"]),
+        "contact_time_s": r["contact_point"]["time_s"],
+    }
+
+
+def _write_summary(rows, path):
+    with open(path, "w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=SUMMARY_COLUMNS)
+        writer.writeheader()
+        writer.writerows(rows)
+    print(f"{len(rows)} files: summary -> {path}")
+    print(f"  {'file':<44} {'quality':<18} {'E_0':>9} {'E(T_app)':>9} {'E_inf':>9} "
+          f"{'Hertz E':>9}  flags")
+    for row in rows:
+        print(f"  {Path(row['file']).name[:44]:<44} {row['quality']:<18} "
+              f"{row['E_0_Pa']:>9.4g} {row['E_at_approach_Pa']:>9.4g} "
+              f"{row['E_inf_Pa']:>9.4g} {row['apparent_hertz_E_Pa']:>9.4g}  "
+              f"{row['flags']}")
+
+
+def _fmt(e):
+    return (f"{e['value']:.4g} +- {e['std']:.2g}" if e["std"] is not None
+            else f"{e['value']:.4g} +- inf")
+
+
+def _print(r, json_path):
+    p, e = r["parameters"], r["youngs_moduli"]
+    auto = len(r["information_criteria"]) > 1
+    print(f"{r['file']}: {r['mode']} ({r['fitted']} fitted), {r['arms']} arm(s)"
+          + (" (BIC among " + ", ".join(r["information_criteria"]) + ")" if auto
+             else "") + f", {r['samples']} samples, grid {r['grid'][0]}^2")
+    q = r["quality"]
+    print(f"  quality: {q['verdict']}: model - data over the raw noise, "
+          + ", ".join(f"{k} {v:.2f} x" for k, v in q["by_segment"].items())
+          + f" (good: <= {q['limit']:g})")
+    print(f"  Young's moduli E = 2 g (1 + nu) [Pa] at nu = {r['poisson']:g}; +- total "
+          "std (optimiser" + (", contact point, grid" if r["uncertainty"] else "")
+          + ")")
+    print(f"  E at the approach's duration ({e['approach_time_s']:.3g} s) = "
+          f"{_fmt(e['E_at_approach_Pa'])} Pa   apparent Hertz E (approach) = "
+          f"{r['apparent_hertz']['E_Pa']:.4g} Pa")
+    print(f"  E_inf = {_fmt(e['E_inf_Pa'])} Pa   E_0 = {_fmt(e['E_0_Pa'])} Pa")
     for i, (g, tau, y) in enumerate(zip(p["g_Pa"], p["tau_s"], e["E_Pa"], strict=True),
                                     1):
-        print(f"  g_{i} = {fmt(g)} Pa   tau_{i} = {fmt(tau)} s   E_{i} = {fmt(y)} Pa")
-    print(f"  instantaneous: G_0 = {r['instantaneous_modulus_Pa']:.4g} Pa   "
-          f"E_0 = {e['E_0_Pa']:.4g} Pa")
-    hold = r["residual_over_noise_hold"]
-    print(f"  residual RMS {r['residual_rms']:.3g} = {r['residual_over_noise']:.2f} x "
-          f"the noise of the binned data" + (f" (hold: {hold:.2f})" if hold is not None
-                                         else "")
-          + f" (raw noise {r['noise_raw']:.3g}); converged: {r['converged']}")
-    if r["hold_residual_over_noise_raw"] is not None:
-        print(f"  hold, raw samples: residual RMS = "
-              f"{r['hold_residual_over_noise_raw']:.2f} x the white noise")
-    if r["discretisation_rms"] is not None:
-        print(f"  discretisation (grid x2): {r['discretisation_rms']:.3g} RMS "
-              f"({r['discretisation_rms'] / r['residual_rms']:.2f} x the residual, "
-              f"{r['discretisation_rms'] / r['noise_raw']:.2f} x the raw noise)")
-        if r["discretisation_rms"] > r["noise_raw"]:
-            print("  note: the grid's bias exceeds the raw noise: a finer --n lowers "
-                  "it (the creep file: 8.2 x the noise at 16^2, 1.3 x at 32^2, 0.4 x "
-                  "at 64^2)")
-    if len(r["information_criteria"]) > 1:
-        for k, v in r["information_criteria"].items():
-            print(f"  {k} arm(s): AIC {v['aic']:.1f}  BIC {v['bic']:.1f}"
-                  + ("" if v["converged"] else "  (not converged)"))
+        print(f"  E_{i} = {_fmt(y)} Pa   tau_{i} = {_fmt(tau)} s   (g_{i} = "
+              f"{g['value']:.4g} Pa)")
+    print(f"  shear moduli: g_inf = {_fmt(p['g_inf_Pa'])} Pa, G_0 = "
+          f"{r['instantaneous_modulus_Pa']:.4g} Pa")
+    c = r["contact_point"]
+    unc = (r["uncertainty"] or {}).get("components", {}).get("contact")
+    print(f"  contact point: t = {c['time_s']:.4g} s, height {c['height_m']:.5g} m, "
+          f"force {c['force_N']:.3g} N ({c['note']})"
+          + (f"; uncertainty +- {unc['samples']} samples ({unc['time_s']:.3g} s)"
+             if unc else ""))
+    disc = r["discretisation_over_noise"]
+    print(f"  raw noise {r['noise_raw']:.3g}"
+          + (f"; grid bias (grid x2) {disc:.2f} x the noise" if disc is not None
+             else "") + f"; converged: {r['converged']}")
+    for text in r["caveats"]:
+        print(f"  caveat: {text}")
+    if r["flags"]:
+        print("  flagged (exit status 1):")
+        for text in r["flags"]:
+            print(f"    - {text}")
+    else:
+        print("  nothing flagged")
     print(f"  note: {RADIUS_NOTE}")
     print(f"  -> {json_path}" + (f", {r['plot']}" if r["plot"] else ""))

@@ -6,7 +6,7 @@ import os
 import numpy as np
 
 from ._afm import SEGMENT_NAMES, _afmformats, read_afm
-from ._fit import IndentationData, fit_prony_batch
+from .fitting import IndentationData, fit_prony_batch
 
 
 def _grid_index(metadata, axis: str, fallback: int) -> int:

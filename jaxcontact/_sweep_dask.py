@@ -147,22 +147,22 @@ def sweep_on_client(sweep, scene, values: dict, size: int, options: dict, client
 
 
 def _fit_chunk(settings, fit_prony_batch, data, scene_template, n_terms, weights,
-               lm_steps, options):
+               options):
     """One chunk of curves on a worker: `fit_prony_batch` (`jc.fit_prony_batch`,
     called without a client)."""
     _apply_settings(settings)
     return fit_prony_batch(_to_jax(data), _to_jax(scene_template), n_terms,
-                           weights=_to_jax(weights), lm_steps=lm_steps,
-                           **_to_jax(options))
+                           weights=_to_jax(weights), **_to_jax(options))
 
 
 def fit_on_client(fit_prony_batch, data: list, scene_template, n_terms: int,
-                  weights: list, inits: list, lm_steps: int, options: dict, client,
+                  weights: list, inits: list, options: dict, client,
                   chunk_size) -> list:
     """`jc.fit_prony_batch`'s work on a Dask cluster: the curves in chunks, each
     chunk's batched Levenberg-Marquardt solve on a worker by `fit_prony_batch` (passed
-    in, as `jc.sweep` is to `sweep_on_client`). **Returns:** the list of `jc.PronyFit`,
-    one per curve, in order."""
+    in, as `jc.sweep` is to `sweep_on_client`; `options`: its other keywords, the
+    `jc.FitOptions` among them). **Returns:** the list of `jc.PronyFit`, one per
+    curve, in order."""
     spans = _chunks(len(data), chunk_size, client)
     settings = _worker_settings()
     scene_np, options_np = _to_numpy(scene_template), _to_numpy(options)
@@ -176,7 +176,7 @@ def fit_on_client(fit_prony_batch, data: list, scene_template, n_terms: int,
         futures.append(client.submit(
             _fit_chunk, settings, fit_prony_batch, _to_numpy(data[start:stop]),
             scene_np, n_terms,
-            _to_numpy(weights[start:stop]), lm_steps, chunk_opts,
+            _to_numpy(weights[start:stop]), chunk_opts,
             key=f"jaxcontact-fit-{token}-{k}"))
     parts = client.gather(futures)  # resubmitted on a worker's death, as in the sweep
     return [fit for part in parts for fit in part]

@@ -276,7 +276,8 @@ data = jc.IndentationData(times, force=measured, depth=depth)
 template = jc.Scene(grid, jc.Sphere(R), jc.Elastic(1e9, 0.38), times,
                     normal=jc.Displacement(depth))
 start = time.perf_counter()
-fit = jc.fit_prony(data, template, 2, solve_options={"scheme": "constant"})
+constant = jc.FitOptions(solve_options={"scheme": "constant"})
+fit = jc.fit_prony(data, template, 2, options=constant)
 elapsed = time.perf_counter() - start
 print(f"fit: {elapsed:.1f} s (with compile), optimiser {fit.optimiser} "
       f"({fit.lm_steps} LM / {fit.adam_steps} Adam + {fit.lbfgs_steps} L-BFGS steps); "
@@ -345,8 +346,7 @@ rows = []
 for level in NOISE_LEVELS:
     noisy = clean + level * rms * rng.standard_normal(clean.shape)
     f = jc.fit_prony(jc.IndentationData(times, force=noisy, depth=depth), template, 2,
-                     noise_std=level * rms if level > 0 else None,
-                     solve_options={"scheme": "constant"})
+                     noise_std=level * rms if level > 0 else None, options=constant)
     e = params(f.material) / params(true) - 1
     s = np.concatenate([[f.std["g_inf"]], f.std["g"], f.std["tau"]])
     rows.append((level, e, s))

@@ -345,18 +345,25 @@ def test_refits_of_the_relaxation_file_from_two_starts_agree():
     assert np.all(np.abs(np.log(pa / pb)) < 3 * std), (pa, pb, std)
 
 
-def test_fit_command_auto_arms_prefers_converged_fits():
+def test_fit_command_auto_arms_prefers_converged_fits_with_no_parameter_at_a_bound():
     from types import SimpleNamespace
 
-    from jaxcontact._cli_fit import _choose
+    from jaxcontact.fitting.afm import _choose
 
     def f(converged):
         return SimpleNamespace(converged=converged)
 
     # BIC: 2 arms best but not converged -> 3 (the best converged)
-    fits = {1: (f(True), 0, -10.0), 2: (f(False), 0, -30.0), 3: (f(True), 0, -20.0)}
+    fits = {1: (f(True), 0, -10.0, []), 2: (f(False), 0, -30.0, []),
+            3: (f(True), 0, -20.0, [])}
     assert _choose(fits) == 3
-    fits = {1: (f(False), 0, -10.0), 2: (f(False), 0, -30.0)}
+    # 3 arms converged but one at a bound -> 1
+    fits[3] = (f(True), 0, -20.0, ["tau_1 = 0.001 s at its lower bound 0.001 s"])
+    assert _choose(fits) == 1
+    # every converged fit at a bound: the best converged
+    fits[1] = (f(True), 0, -10.0, ["g_1 = 0 Pa at 0"])
+    assert _choose(fits) == 3
+    fits = {1: (f(False), 0, -10.0, []), 2: (f(False), 0, -30.0, [])}
     assert _choose(fits) == 2  # none converged: the smallest BIC
 
 
@@ -376,7 +383,8 @@ def test_one_arm_fit_of_the_creep_file_converges():
     fit = jc.fit_prony(data, template, 1, weights=np.sqrt(counts))
     assert fit.converged, fit.message
     assert 0.01 < float(fit.material.tau[0]) < 3.0
-    lm = jc.fit_prony(data, template, 1, weights=np.sqrt(counts), optimiser="lm")
+    lm = jc.fit_prony(data, template, 1, weights=np.sqrt(counts),
+                      options=jc.FitOptions(optimiser="lm"))
     assert lm.converged, lm.message
     for key in ("g_inf", "g", "tau"):
         a = np.log(np.atleast_1d(np.asarray(getattr(fit.material, key))))
@@ -460,7 +468,7 @@ def test_lee_radok_start_recovers_the_generating_series():
     import jax
 
     jax.config.update("jax_enable_x64", True)
-    from jaxcontact._fit import lee_radok_start
+    from jaxcontact.fitting import lee_radok_start
 
     c = jc.read_afm(synthetic_viscoelastic(0.005), contact="viscoelastic")
     data = c.data({"approach": 20, "hold": 30})

@@ -21,6 +21,7 @@ tau = (8.93, 117.96) s, nu = 0.38; built here from the paper's creep form (Eq. 2
 `jc.Prony.from_creep` (Eq. 28 is in 1/GPa of the paper's modulus: J_true = 2 J_paper).
 """
 
+import dataclasses
 import functools
 import json
 import os
@@ -34,7 +35,11 @@ import pytest
 from helpers import run_on_host_devices
 
 import jaxcontact as jc
-from jaxcontact import _fit
+from jaxcontact import fitting as _fit
+from jaxcontact.fitting import certificate as _certificate
+from jaxcontact.fitting import lm as _lm
+from jaxcontact.fitting import parametrisation as _param
+from jaxcontact.fitting import start as _start
 
 
 R, NU = 3.5e-3, 0.38  # the paper's PMMA sphere [m] and Poisson's ratio
@@ -143,8 +148,8 @@ def test_fit_from_a_poor_start():
     close: from this far away it still makes progress but needs more than 200 steps.)"""
     data, template, model = surrogate_case("depth", nt=24)
     start = jc.Prony(1.2e9, [1e8, 1e8], [5.0, 50.0], NU)
-    fit = jc.fit_prony(data, template, 2, _model=model, init=start, precondition=False,
-                       lbfgs_steps=200)
+    fit = jc.fit_prony(data, template, 2, _model=model, init=start,
+                       options=jc.FitOptions(precondition=False, lbfgs_steps=200))
     assert fit.converged, fit.message
     err = np.abs(params(fit.material) / params(pmma()) - 1)
     assert np.all(err < 1e-6), err
@@ -152,6 +157,7 @@ def test_fit_from_a_poor_start():
 
 
 ONE_ARM = (1e9, 2e9, 0.5)  # g_inf [Pa], g_1 [Pa], tau_1 [s]
+LM = jc.FitOptions(optimiser="lm")
 
 
 def ramp_hold_unload_case(noise=0.01, seed=0):
@@ -201,7 +207,7 @@ def test_a_fit_stuck_at_a_boundary_restarts_or_says_it_has_not_converged(monkeyp
     fit = jc.fit_prony(data, template, 1, _model=model, init=start)
     assert fit.converged and "restart" in fit.message, fit.message
     assert abs(float(fit.material.g_inf) / ONE_ARM[0] - 1) < 0.1
-    monkeypatch.setattr(_fit, "_MAX_RESTARTS", 0)
+    monkeypatch.setattr(_certificate, "_MAX_RESTARTS", 0)
     stuck = jc.fit_prony(data, template, 1, _model=model, init=start)
     assert float(stuck.material.g_inf) < 1e-3 * ONE_ARM[0]  # still in the trap
     assert not stuck.converged, stuck.message
@@ -216,7 +222,8 @@ def test_a_fit_stuck_at_a_boundary_restarts_or_says_it_has_not_converged(monkeyp
 def test_a_fit_stopped_early_is_not_converged(limits):
     data, template, model = ramp_hold_unload_case()
     start = jc.Prony(3e9, jnp.array([0.7e9]), jnp.array([1.5]), NU)
-    fit = jc.fit_prony(data, template, 1, _model=model, init=start, **limits)
+    fit = jc.fit_prony(data, template, 1, _model=model, init=start,
+                       options=jc.FitOptions(**limits))
     assert not fit.converged, fit.message
     assert fit.optimiser == {"auto": "lbfgs+lm"}.get(limits["optimiser"],
                                                      limits["optimiser"])
@@ -244,7 +251,7 @@ def test_far_starts_reach_the_minimum(kind, optimiser):
         start = jc.Prony(truth[0] * f[0], jnp.array([truth[1] * f[1]]),
                          jnp.array([truth[2] * f[2]]), NU)
         fit = jc.fit_prony(data, template, 1, _model=model, init=start,
-                           optimiser=optimiser)
+                           options=jc.FitOptions(optimiser=optimiser))
         assert fit.converged, (f, fit.message)
         used.add(fit.optimiser)
         std = np.concatenate([[fit.std["g_inf"]], fit.std["g"], fit.std["tau"]])
@@ -344,7 +351,7 @@ def test_fit_poisson_is_not_identifiable_from_normal_indentation_alone():
     direction undetermined, reported as an infinite std, never a NaN."""
     data, template, model = surrogate_case("force", nt=20)
     fit = jc.fit_prony(data, template, 2, _model=model, fit_poisson=True,
-                       adam_steps=0, lbfgs_steps=3)
+                       options=jc.FitOptions(adam_steps=0, lbfgs_steps=3))
     assert set(fit.std) == {"g_inf", "g", "tau", "poisson"}
     assert not np.any(np.isnan(np.concatenate([np.ravel(v) for v in fit.std.values()])))
     assert np.isinf(fit.std["poisson"]) and np.isinf(fit.std["g_inf"])
@@ -417,20 +424,57 @@ def test_fit_prony_rejects_data_it_cannot_fit():
 def test_parametrisation_round_trip_and_positivity():
     refs = {"g_ref": jnp.asarray(1e9), "t_ref": jnp.asarray(100.0),
             "poisson": jnp.asarray(NU)}
-    theta = _fit._to_theta(pmma(), refs, True, jnp.float64)
-    back = _fit._to_material(theta, refs, True)
+    theta = _param._to_theta(pmma(), refs, True, jnp.float64)
+    back = _param._to_material(theta, refs, True)
     np.testing.assert_allclose(params(back), params(pmma()), rtol=1e-14)
     np.testing.assert_allclose(float(back.poisson), NU, rtol=1e-14)
     # Any real theta is a valid material: moduli and times > 0, 0 < nu < 0.5.
     wild = jax.tree.map(lambda x: x + 30.0 * jnp.sign(x - 0.1), theta)
-    m = _fit._to_material(wild, refs, True)
+    m = _param._to_material(wild, refs, True)
     assert float(m.g_inf) > 0 and np.all(np.asarray(m.g) > 0)
     assert np.all(np.asarray(m.tau) > 0) and 0 < float(m.poisson) < 0.5
     # Initial times: log-spaced strictly inside [first step, span].
     np.testing.assert_allclose(
-        _fit._initial_times(np.array([0.0, 1.0, 10.0, 1000.0]), 3),
+        _start._initial_times(np.array([0.0, 1.0, 10.0, 1000.0]), 3),
         [10 ** 0.75, 10 ** 1.5, 10 ** 2.25], rtol=1e-12)
 
+
+
+def test_fit_options_are_checked_and_the_old_keywords_still_work():
+    """`jc.FitOptions` checks every field when made (the error names the value);
+    `fit_prony`'s old optimiser keywords still work, put into the options (the same
+    fit to the last bit), and an unknown keyword is a TypeError."""
+    for bad, exc, match in (
+            (dict(optimiser="newton"), ValueError, "optimiser.*'newton'"),
+            (dict(adam_steps=-1), ValueError, "adam_steps must be >= 0, got -1"),
+            (dict(lbfgs_steps=2.5), TypeError, "lbfgs_steps must be an integer"),
+            (dict(lm_steps=0), ValueError, "lm_steps must be >= 1, got 0"),
+            (dict(learning_rate=20.0), ValueError, "learning_rate.*20.0"),
+            (dict(gtol=-1.0), ValueError, "gtol.*-1.0"),
+            (dict(precondition="yes"), TypeError, "precondition.*'yes'"),
+            (dict(check_grid=1), TypeError, "check_grid.*1"),
+            (dict(solve_options=[("rtol", 1e-6)]), TypeError, "solve_options"),
+            (dict(solve_options={"operator": None}), ValueError, "operator")):
+        with pytest.raises(exc, match=match):
+            jc.FitOptions(**bad)
+    options = jc.FitOptions(optimiser=None, solve_options={"rtol": 1e-8})
+    assert options.optimiser == "auto" and options.solve_options == {"rtol": 1e-8}
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        options.lm_steps = 3
+    data, template, model = ramp_hold_unload_case()
+    start = jc.Prony(3e9, jnp.array([0.7e9]), jnp.array([1.5]), NU)
+    new = jc.fit_prony(data, template, 1, _model=model, init=start,
+                       options=jc.FitOptions(optimiser="lm", lm_steps=3))
+    old = jc.fit_prony(data, template, 1, _model=model, init=start, optimiser="lm",
+                       lm_steps=3)
+    assert np.array_equal(params(new.material), params(old.material))
+    assert new.message == old.message and new.lm_steps == old.lm_steps
+    with pytest.raises(TypeError, match="unexpected keyword argument 'lm_step'"):
+        jc.fit_prony(data, template, 1, _model=model, lm_step=3)
+    with pytest.raises(TypeError, match="options must be a jc.FitOptions"):
+        jc.fit_prony(data, template, 1, _model=model, options={"lm_steps": 3})
+    with pytest.raises(ValueError, match="always uses optimiser='lm'"):
+        jc.fit_prony_batch([data], template, 1, _model=model, optimiser="lm")
 
 # ---- the full contact model ----------------------------------------------------------
 
@@ -513,7 +557,8 @@ def test_check_grid_reports_the_discretisation_error():
 
     force = jc.solve(scene(16, truth), scheme="linear").normal_force
     data = jc.IndentationData(times, force=force, depth=depth)
-    fit = jc.fit_prony(data, scene(8, jc.Elastic(3e3, 0.5)), 1, check_grid=True)
+    fit = jc.fit_prony(data, scene(8, jc.Elastic(3e3, 0.5)), 1,
+                       options=jc.FitOptions(check_grid=True))
     fine = jc.solve(scene(16, fit.material), scheme="linear").normal_force
     expected = float(np.sqrt(np.mean((fit.curve - np.asarray(fine)) ** 2)))
     assert fit.discretisation is not None and expected > 0
@@ -625,17 +670,17 @@ def test_a_prefit_step_far_beyond_its_clip_gives_a_valid_start(monkeypatch):
     leave a log time far out (on an H200 one went to exp(-800) = 0 s, and
     `fit_prony` raised "tau must be finite and > 0" before its first step). Here the
     step is made to do that: the start holds the clipped value, a positive time."""
-    real_step = _fit._prefit_step
+    real_step = _start._prefit_step
 
     def wild(kind, theta, state, *args):
         new, state, value = real_step(kind, theta, state, *args)
         return {**new, "tau": new["tau"].at[-1].set(-800.0)}, state, value
 
-    monkeypatch.setattr(_fit, "_prefit_step", wild)
+    monkeypatch.setattr(_start, "_prefit_step", wild)
     lag = np.linspace(0.0, 10.0, 40)
     apparent = 1e6 * (1 + 2 * np.exp(-lag / 0.7))
-    refined = _fit._prefit("force", lag, apparent, 1e6, 2e6, np.array([0.3, 3.0]),
-                           3e6, 10.0, steps=3)
+    refined = _start._prefit("force", lag, apparent, 1e6, 2e6, np.array([0.3, 3.0]),
+                             3e6, 10.0, steps=3)
     assert refined is not None
     g_inf, g, tau = refined
     assert np.all(np.isfinite(tau)) and np.all(tau > 0), tau
@@ -652,10 +697,10 @@ def test_an_invalid_trial_material_stops_lm_without_raising(monkeypatch):
     def fails(*args, **kwargs):
         raise eqx.EquinoxRuntimeError("relaxation times must be distinct")
 
-    monkeypatch.setattr(_fit, "_lm_solve", fails)
+    monkeypatch.setattr(_lm, "_lm_solve", fails)
     data, template, model = ramp_hold_unload_case()
     start = jc.Prony(3e9, jnp.array([0.7e9]), jnp.array([1.5]), NU)
-    fit = jc.fit_prony(data, template, 1, _model=model, init=start, optimiser="lm")
+    fit = jc.fit_prony(data, template, 1, _model=model, init=start, options=LM)
     assert not fit.converged
     assert "invalid material (relaxation times must be distinct)" in fit.message
     np.testing.assert_allclose(params(fit.material), params(start), rtol=1e-12)
@@ -706,8 +751,8 @@ def test_a_dead_arm_is_reported():
 
 
 def test_a_dead_arm_left_in_place_is_not_converged(monkeypatch):
-    monkeypatch.setattr(_fit, "_MAX_RESTARTS", 0)
-    monkeypatch.setattr(_fit, "_boundary_probe", lambda *a, **k: None)
+    monkeypatch.setattr(_certificate, "_MAX_RESTARTS", 0)
+    monkeypatch.setattr(_certificate, "_boundary_probe", lambda *a, **k: None)
     data, template, model = ramp_hold_creep_case()
     start = jc.Prony(1e9, jnp.array([3e18]), jnp.array([3e-18]), NU)
     fit = jc.fit_prony(data, template, 1, _model=model, init=start)
@@ -758,7 +803,7 @@ def test_batch_equals_fits_one_by_one_on_the_closed_form_model():
     data, template, model = three_step_curves()
     models = [model]
     fits = jc.fit_prony_batch(data, template, 2, _model=models[0], vectorize=True)
-    singles = [jc.fit_prony(d, template, 2, optimiser="lm", _model=models[0])
+    singles = [jc.fit_prony(d, template, 2, options=LM, _model=models[0])
                for d in data]
     _batch_matches_singles(fits, singles)
     # the curves differ: the batch did not fit one curve three times
@@ -785,7 +830,8 @@ _SHARDED_BATCH = textwrap.dedent(
     assert len(jax.devices()) == 2, jax.devices()
     data, template, model = t.three_step_curves()
     fits = jc.fit_prony_batch(data, template, 2, _model=model, devices=jax.devices())
-    singles = [jc.fit_prony(d, template, 2, optimiser="lm", _model=model)
+    singles = [jc.fit_prony(d, template, 2, options=jc.FitOptions(optimiser="lm"),
+                            _model=model)
                for d in data]
     t._batch_matches_singles(fits, singles, same_steps=False)
     print(json.dumps({{"devices": len(jax.devices()),
@@ -816,11 +862,13 @@ def test_batch_refits_curves_its_lm_does_not_certify():
     data, template, model = three_step_curves()
     m = pmma()
     far = [jc.Prony(3 * m.g_inf, m.g / 3, m.tau * 2, m.poisson)] * 3
-    stopped = jc.fit_prony_batch(data, template, 2, _model=model, lm_steps=1,
+    one_step = jc.FitOptions(lm_steps=1)
+    stopped = jc.fit_prony_batch(data, template, 2, _model=model, options=one_step,
                                  init=far, refit=False)
     assert not any(f.converged for f in stopped)
-    fits = jc.fit_prony_batch(data, template, 2, _model=model, lm_steps=1, init=far)
-    alone = [jc.fit_prony(d, template, 2, lm_steps=1, init=far[0], _model=model)
+    fits = jc.fit_prony_batch(data, template, 2, _model=model, options=one_step,
+                              init=far)
+    alone = [jc.fit_prony(d, template, 2, options=one_step, init=far[0], _model=model)
              for d in data]
     for fit, before, other in zip(fits, stopped, alone, strict=True):
         keep = other if (other.converged or other.loss < before.loss) else before
@@ -836,7 +884,8 @@ def test_batch_rejects_curves_of_different_shapes():
     with pytest.raises(ValueError, match="same number of samples"):
         jc.fit_prony_batch([data, short], template, 2, _model=model)
     with pytest.raises(ValueError, match="optimiser='lm'"):
-        jc.fit_prony_batch([data], template, 2, optimiser="lbfgs", _model=model)
+        jc.fit_prony_batch([data], template, 2, _model=model,
+                           options=jc.FitOptions(optimiser="lbfgs"))
     with pytest.raises(TypeError, match="IndentationData"):
         jc.fit_prony_batch([], template, 2)
     with pytest.raises(TypeError, match="vectorize"):
@@ -876,5 +925,5 @@ def test_batch_equals_fits_one_by_one_through_the_contact_model():
     template = jc.Scene(grid, jc.Sphere(R), jc.Elastic(1e9, NU), times,
                         normal=jc.Displacement(delta))
     fits = jc.fit_prony_batch(data, template, 1, vectorize=True)
-    singles = [jc.fit_prony(d, template, 1, optimiser="lm") for d in data]
+    singles = [jc.fit_prony(d, template, 1, options=LM) for d in data]
     _batch_matches_singles(fits, singles, same_steps=False, atol=1e-7)

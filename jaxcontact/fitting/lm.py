@@ -1,0 +1,116 @@
+"""Levenberg-Marquardt (`FitOptions(optimiser="lm")`, and `"auto"`'s second stage):
+optimistix's `LevenbergMarquardt` on the relative residual, its Jacobian by forward
+mode through the contact solve's implicit tangent solves (one per parameter), one
+compiled program per problem shape; vmapped over a batch of curves for
+`jc.fit_prony_batch`. `_LMRun` drives it from a fit (a failure is a message, not an
+exception)."""
+
+import dataclasses
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from .._solver.implicit import ImplicitAdjoint
+from .model import _Evaluator, _residual, _SceneModel
+
+
+def _have_optimistix() -> bool:
+    try:
+        import optimistix  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def _lm_rtol(dtype) -> float:
+    """LM's relative tolerance (its absolute one is a tenth of it) for `dtype`."""
+    return 1e-8 if jnp.finfo(dtype).bits >= 64 else 1e-4
+
+
+@eqx.filter_jit
+def _lm_solve(theta, args, rtol, atol, max_steps):
+    """`optimistix.least_squares` with `LevenbergMarquardt`: `(theta, result, steps)`.
+    The Jacobian comes from forward mode (`jac="fwd"`: `jax.jacfwd`, one tangent solve
+    per parameter, batched; the contact model's solves in
+    `ImplicitAdjoint(mode="forward")`, `_forward_model`): `p` tangent solves per LM
+    step instead of one adjoint per sample. Compiled once per problem shape;
+    `throw=False`: a failure is a result code."""
+    return _lm_solve_unjitted(theta, args, rtol, atol, max_steps)
+
+
+def _forward_model(model):
+    """The contact model with its solves differentiated in forward mode (the options'
+    `adjoint`, or the default one, with `mode="forward"`); other models as they are."""
+    if not isinstance(model, _SceneModel):
+        return model
+    options = dict(model.options)
+    given = options.get("adjoint") or ImplicitAdjoint()
+    options["adjoint"] = dataclasses.replace(given, mode="forward")
+    return _SceneModel(model.kind, tuple(sorted(options.items())))
+
+
+def _lm_solve_unjitted(theta, args, rtol, atol, max_steps):
+    import optimistix as optx
+
+    ctx, refs, target, scale, model, fit_poisson = args
+    args = (ctx, refs, target, scale, _forward_model(model), fit_poisson)
+    sol = optx.least_squares(_residual, optx.LevenbergMarquardt(rtol=rtol, atol=atol),
+                             theta, args, options={"jac": "fwd"}, max_steps=max_steps,
+                             throw=False)
+    return sol.value, sol.result == optx.RESULTS.successful, sol.stats["num_steps"]
+
+
+@eqx.filter_jit
+def _lm_solve_batch(theta, args, axes, rtol, atol, max_steps):
+    """`_lm_solve` over a batch of curves: `jax.vmap` of the whole Levenberg-Marquardt
+    solve (one compiled program; the loop runs until its slowest member, the others
+    held at their end point). `theta`: every leaf with a leading batch axis; `args`:
+    `_residual`'s arguments, the leaves whose `axes` entry is 0 batched. Inputs
+    sharded along the batch axis are computed where they lie (XLA's partitioner)."""
+    return eqx.filter_vmap(
+        lambda th, a: _lm_solve_unjitted(th, a, rtol, atol, max_steps),
+        in_axes=(0, axes))(theta, args)
+
+
+class _LMRun:
+    """Levenberg-Marquardt runs of one fit: `run(theta)` -> `(theta, converged,
+    message, 0, 0)` (the zeros: no Adam or L-BFGS steps), the end point's loss
+    appended to `history`, the LM steps summed in `total`. `ready`: the result
+    `(theta, converged, steps)` of this fit's first run, already solved (by
+    `jc.fit_prony_batch`'s batched program), used in place of the first solve."""
+
+    def __init__(self, ev: _Evaluator, max_steps: int, dtype, init, history: list,
+                 ready=None):
+        self.ev, self.max_steps, self.dtype = ev, max_steps, dtype
+        self.init, self.history, self.ready = init, history, ready
+        self.total = 0
+
+    def _solve(self, theta):
+        if self.ready is not None:
+            ready, self.ready = self.ready, None
+            return ready
+        rtol = _lm_rtol(self.dtype)
+        return _lm_solve(theta, self.ev.args, rtol, 0.1 * rtol, self.max_steps)
+
+    def __call__(self, theta, adam_steps=0):
+        del adam_steps  # the signature of the Adam + L-BFGS run (`with_probes`)
+        ev = self.ev
+        if not np.isfinite(float(ev.loss(theta)[0])):
+            raise ValueError(
+                f"the model gives a non-finite loss at the start {self.init!r}")
+        try:
+            new, ok, steps = self._solve(theta)
+        except eqx.EquinoxRuntimeError as exc:  # a trial made an invalid material
+            first_line = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+            return theta, False, ("Levenberg-Marquardt stopped: a trial step made an "
+                                  f"invalid material ({first_line})"), 0, 0
+        ev.calls += 1
+        self.total += int(steps)
+        value = float(ev.loss(new)[0])
+        if not np.isfinite(value):  # keep the start rather than a broken end point
+            return theta, False, "Levenberg-Marquardt ended at a non-finite loss", 0, 0
+        self.history.append(value)
+        message = (f"Levenberg-Marquardt: {'converged' if bool(ok) else 'stopped'} "
+                   f"after {int(steps)} steps")
+        return new, bool(ok), message, 0, 0

@@ -1,0 +1,263 @@
+"""The quality verdict of a fitted AFM curve, and its moduli as AFM users read them.
+
+The verdict compares the fitted model with the RAW samples of each fitted segment
+(approach, hold, retract; each thinned evenly to at most 600): `rms(model - data) /
+noise`, with `noise` the raw curve's white noise (`AFMCurve.noise`: successive
+differences). A model that reproduces the data leaves the noise: a ratio of 1. The fit
+is `"good"` when every fitted segment is within `QUALITY_LIMIT` of it, a
+`"systematic misfit"` otherwise, naming the segments.
+
+Flags (each makes `jaxcontact fit` exit 1): not converged, a systematic misfit, a
+parameter at a bound, the grid's bias above the noise, a contact point the
+viscoelastic refinement could not place, an implausible probe radius. Caveats (do not
+change the exit status): a modulus that rests on relaxation times faster than the
+approach (`E_0`); an indentation deeper than the probe's radius.
+"""
+
+import math
+
+import numpy as np
+
+
+# A model within the noise gives 1; 2 allows a systematic part of sqrt(3) x the noise.
+QUALITY_LIMIT = 2.0
+SEGMENTS = ("approach", "hold", "retract")
+_AT_BOUND = 0.01  # a relaxation time within 1 % (in log) of a bound sits on it
+DEEP = 1.0  # depth / radius above which the caveat on the small-strain model shows
+
+
+def model_curve(material, template, *, times, force, depth, kind, refine=1):
+    """`(nt,)` the contact model of `material` on `template`'s grid (`refine` times
+    the cells per side, same width) driven by the measured `force` (`kind="depth"`:
+    returns the depth [m]) or `depth` (`kind="force"`: returns the force [N]) at
+    `times` [s], from an unloaded start, scheme `"linear"` as in the fit."""
+    import equinox as eqx
+    import jax.numpy as jnp
+
+    import jaxcontact as jc
+
+    grid = template.grid
+    if refine != 1:
+        grid = type(grid)(shape=tuple(refine * k for k in grid.shape), size=grid.size,
+                          periodic=grid.periodic)
+    normal = (jc.Force(jnp.asarray(force)) if kind == "depth"
+              else jc.Displacement(jnp.asarray(depth)))
+    scene = eqx.tree_at(lambda s: (s.grid, s.material, s.times, s.normal), template,
+                        (grid, material, jnp.asarray(times), normal))
+    sol = jc.solve(scene, scheme="linear", throw=False)
+    return np.asarray(sol.approach if kind == "depth" else sol.normal_force)
+
+
+def raw_residual(material, kind, curve, template, *, refine=1, max_samples=600):
+    """`(time, residual, segment)` of the model of `material` against the RAW samples
+    of an `AFMCurve` (each segment thinned evenly to at most `max_samples`): one
+    forward solve on `template`'s grid (`refine` x the cells per side) from an
+    unloaded start at `t = 0`, fitting `kind` ("depth" or "force").
+    `residual` = model - data [N or m], every sample after the contact's."""
+    keep = np.zeros(curve.time.shape, bool)
+    for code in (0, 1, 2):
+        idx = np.flatnonzero(curve.segment == code)
+        keep[idx[:: max(1, -(-idx.size // max_samples))]] = True
+    t, f, d, s = (x[keep].copy() for x in (curve.time, curve.force, curve.depth,
+                                            curve.segment))
+    if t[0] <= 0:  # the contact sample: the model starts unloaded there
+        f[0], d[0] = 0.0, 0.0
+    else:
+        t, f, d, s = np.r_[0.0, t], np.r_[0.0, f], np.r_[0.0, d], np.r_[0, s]
+    model = model_curve(material, template, times=t, force=f, depth=d, kind=kind,
+                        refine=refine)
+    # The contact sample itself is no measurement (force and depth 0 by definition;
+    # under load control the model's first approach is the gap of the node nearest
+    # the apex): it is left out.
+    res = model - (d if kind == "depth" else f)
+    return t[1:], res[1:], s[1:]
+
+
+def at_bounds(material, tau_bounds) -> list:
+    """Parameters of `material` at a bound: a relaxation time within 1 % (in log) of
+    `tau_bounds` [s], or a modulus below 1e-4 of the instantaneous one (the positive
+    parametrisation's floor). Texts such as `"tau_2 = 31.2 s at its upper bound"`."""
+    g_inf, g, tau = (np.asarray(x, float) for x in (material.g_inf, material.g,
+                                                    material.tau))
+    g0 = float(g_inf + g.sum())
+    out = [f"g_inf = {float(g_inf):.3g} Pa at 0"] if g_inf < 1e-4 * g0 else []
+    for i in range(g.shape[0]):
+        if g[i] < 1e-4 * g0:
+            out.append(f"g_{i + 1} = {g[i]:.3g} Pa at 0")
+        if tau_bounds:
+            for bound, name in zip(tau_bounds, ("lower", "upper"), strict=True):
+                if abs(math.log(tau[i] / bound)) < _AT_BOUND:
+                    out.append(f"tau_{i + 1} = {tau[i]:.4g} s at its {name} bound "
+                               f"{bound:.4g} s")
+    return out
+
+
+def relaxation_modulus(material, t):
+    """`G(t) = g_inf + sum g_i exp(-t / tau_i)` [Pa] of a `jc.Prony` at `t` [s]."""
+    g, tau = np.asarray(material.g, float), np.asarray(material.tau, float)
+    return float(material.g_inf) + float(np.sum(g * np.exp(-t / tau)))
+
+
+def log_std_of(material, covariance, t):
+    """Gauss-Newton standard deviation of `log G(t)` [-] from the fit's covariance of
+    the log-parameters (`g_inf, g_1..n, tau_1..n`); `t = 0`: the instantaneous
+    modulus. Inf where a parameter it depends on is undetermined."""
+    g, tau = np.asarray(material.g, float), np.asarray(material.tau, float)
+    decay = g * np.exp(-t / tau)
+    total = float(material.g_inf) + decay.sum()
+    w = np.concatenate([[float(material.g_inf)], decay, decay * t / tau]) / total
+    c = np.asarray(covariance, float)[: w.size, : w.size]
+    used = w != 0
+    c, w = c[np.ix_(used, used)], w[used]
+    if not np.isfinite(c).all():
+        return math.inf
+    return float(math.sqrt(max(float(w @ c @ w), 0.0)))
+
+
+def _entry(value, std_log, components=None):
+    """One reported parameter: value, std (= value x std_log, the relative standard
+    deviation), std_log, and the analysis components of std_log."""
+    value = float(value)
+    finite = std_log is not None and math.isfinite(std_log)
+    out = {"value": value, "std": value * std_log if finite else None,
+           "std_log": std_log if finite else None}
+    if components is not None:
+        out["std_log_components"] = {k: (v if math.isfinite(v) else None)
+                                     for k, v in components.items()}
+    return out
+
+
+def _combined(stat, shifts):
+    """Total std of a log quantity: its Gauss-Newton std and the analysis shifts in
+    quadrature; `(total, components)`."""
+    comps = {"optimiser": stat, **shifts}
+    return math.sqrt(sum(v * v for v in comps.values())), comps
+
+
+def _parameters(fit, uncertainty):
+    m = fit.material
+    out = {}
+
+    def one(value, stat, getter):
+        shifts = {} if uncertainty is None else uncertainty.log_shifts(getter)
+        total, comps = _combined(stat, shifts)
+        return _entry(value, total, comps if uncertainty is not None else None)
+
+    out["g_inf_Pa"] = one(m.g_inf, float(fit.std["g_inf"]),
+                          lambda mm: float(mm.g_inf))
+    out["g_Pa"] = [one(v, float(s), lambda mm, i=i: float(mm.g[i]))
+                   for i, (v, s) in enumerate(zip(np.asarray(m.g), fit.std["g"],
+                                                  strict=True))]
+    out["tau_s"] = [one(v, float(s), lambda mm, i=i: float(mm.tau[i]))
+                    for i, (v, s) in enumerate(zip(np.asarray(m.tau), fit.std["tau"],
+                                                   strict=True))]
+    return out
+
+
+def youngs_moduli(parameters, material, poisson, approach_time, uncertainty,
+                  covariance=None) -> dict:
+    """Young's moduli `E = 2 G (1 + nu)` [Pa] at the fixed Poisson's ratio `poisson`:
+    `E_inf_Pa`, `E_Pa` (the arms), `E_0_Pa` (instantaneous, `G(0)`) and
+    `E_at_approach_Pa` (`E(T)`, `T` = `approach_time` [s], the approach's duration:
+    the modulus the approach measures, comparable with a Hertz fit of it). Entries:
+    value, std, std_log (the factor `2 (1 + nu)` carries no uncertainty)."""
+    factor = 2 * (1 + poisson)
+
+    def scaled(e):
+        out = dict(e)
+        out["value"] = factor * e["value"]
+        out["std"] = None if e["std"] is None else factor * e["std"]
+        return out
+
+    out = {"E_inf_Pa": scaled(parameters["g_inf_Pa"]),
+           "E_Pa": [scaled(e) for e in parameters["g_Pa"]]}
+    for key, t in (("E_0_Pa", 0.0), ("E_at_approach_Pa", approach_time)):
+        stat = (log_std_of(material, covariance, t) if covariance is not None
+                else math.nan)
+        shifts = {} if uncertainty is None else uncertainty.log_shifts(
+            lambda mm, t=t: relaxation_modulus(mm, t))
+        total, comps = _combined(stat, shifts)
+        out[key] = _entry(factor * relaxation_modulus(material, t), total,
+                          comps if uncertainty is not None else None)
+    out["approach_time_s"] = approach_time
+    out["poisson"] = poisson
+    out["note"] = (f"Young's moduli E = 2 G (1 + nu) at the given Poisson's ratio nu = "
+                   f"{poisson:g} (fixed); E_0 = E(0), the instantaneous modulus; "
+                   f"E_at_approach = E(T) at the approach's duration T = "
+                   f"{approach_time:.3g} s")
+    return out
+
+
+def assess(fit, curve, problem, raw_res, raw_seg, disc, radius_note, uncertainty):
+    """The report's verdict: parameters with their uncertainty, residuals against the
+    noise by segment, the quality verdict, flags and caveats (a dict to merge into
+    the report)."""
+    noise = curve.noise(fit.kind)
+    fitted = [s for s in SEGMENTS if s in problem.settings.segments]
+    by_segment = {}
+    for code, name in enumerate(SEGMENTS):
+        sel = raw_seg == code
+        if name in fitted and sel.any():
+            by_segment[name] = float(np.sqrt(np.mean(raw_res[sel] ** 2)) / noise)
+    worse = {k: v for k, v in by_segment.items() if v > QUALITY_LIMIT}
+    verdict = "good" if not worse else "systematic misfit"
+    flags = []
+    if not fit.converged:
+        flags.append(f"not converged: {fit.message}")
+    if worse:
+        flags.append("systematic misfit: " + ", ".join(
+            f"{k} {v:.3g} x the noise" for k, v in worse.items())
+            + f" (limit {QUALITY_LIMIT:g})")
+    for text in at_bounds(fit.material, problem.tau_bounds):
+        flags.append(f"parameter at a bound: {text}")
+    if disc is not None and disc > noise:
+        flags.append(f"grid bias {disc / noise:.3g} x the noise (grid "
+                     f"{problem.settings.n}^2; a finer --n lowers it)")
+    if "no minimum" in curve.contact_note or "too few" in curve.contact_note:
+        flags.append(f"contact point: {curve.contact_note}")
+    if radius_note is not None:
+        flags.append(f"radius: {radius_note}")
+    if uncertainty is not None:
+        flags.extend(uncertainty.flags)
+    caveats = []
+    tau1 = float(np.min(np.asarray(fit.material.tau)))
+    if tau1 < problem.approach_time:
+        caveats.append(
+            f"E_0 rests on tau_1 = {tau1:.3g} s, faster than the approach "
+            f"({problem.approach_time:.3g} s): an extrapolation the loading does not "
+            "see; E_at_approach is what the approach measures")
+    depth_ratio = float(np.max(curve.depth)) / problem.settings.radius
+    if depth_ratio > DEEP:
+        caveats.append(
+            f"the maximum depth is {depth_ratio:.3g} x the probe radius: beyond the "
+            "small-strain half-space the model (and Hertz) assumes (depth << radius)")
+    params = _parameters(fit, uncertainty)
+    return {
+        "parameters": params,
+        "log_parameter_names": list(fit.parameter_names),
+        "log_parameter_correlation": _correlation(fit.covariance),
+        "instantaneous_modulus_Pa": relaxation_modulus(fit.material, 0.0),
+        "residual_rms": float(np.sqrt(np.mean(fit.residual**2))),
+        "noise_raw": noise,
+        "residual_over_noise_raw": by_segment,
+        "quality": {
+            "verdict": verdict,
+            "criterion": (f"good when the RMS of model - data over the raw samples of "
+                          f"every fitted segment is within {QUALITY_LIMIT:g} x the "
+                          "raw white noise (successive differences); 1 = the noise"),
+            "limit": QUALITY_LIMIT, "by_segment": by_segment},
+        "discretisation_rms": disc,
+        "discretisation_over_noise": None if disc is None else disc / noise,
+        "uncertainty": None if uncertainty is None else uncertainty.summary(),
+        "flags": flags,
+        "caveats": caveats,
+    }
+
+
+def _correlation(cov):
+    """Correlation matrix of a covariance (nested lists; None where undetermined)."""
+    cov = np.asarray(cov, float)
+    d = np.sqrt(np.diag(cov))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        c = cov / np.outer(d, d)
+    return [[float(v) if np.isfinite(v) else None for v in row] for row in c]

@@ -1,0 +1,270 @@
+"""The fitted AFM curve's verdict, moduli and uncertainty (`jaxcontact.fitting`).
+
+A synthetic creep curve made by the contact model itself (8^2 grid, one arm) plus
+white noise is the positive control: the fit is judged good, nothing is flagged, and
+the truth lies within the reported uncertainty. The real relaxation file, whose
+approach and hold are not one linear viscoelastic response
+(`benchmarks/notes/fit_real_files.md`), is the negative one: a systematic misfit,
+named by segment, exit status 1.
+"""
+
+import json
+import math
+import os
+
+import numpy as np
+import pytest
+
+import jaxcontact as jc
+from jaxcontact._afm import AFMCurve
+from jaxcontact.fitting import quality, uncertainty
+from jaxcontact.fitting.afm import AFMFitSettings, apparent_hertz, fit_afm_curve
+
+
+DATA = os.path.join(os.path.dirname(__file__), "data")
+CREEP = os.path.join(DATA, "fmt-jpk-cc_pr14-polymergel-2021.06.30.jpk-force")
+RELAX = os.path.join(DATA, "fmt-jpk-sr_cell1-0008.jpk-force")
+
+RADIUS, K = 5e-6, 0.06  # m, N/m
+TRUTH = jc.Prony(g_inf=400.0, g=[200.0], tau=[0.3], poisson=0.5)
+
+
+def synthetic_creep(material=TRUTH, noise=2e-9, n=8, seed=0, pre=60):
+    """An `AFMCurve` of a creep test made by the contact model (sphere R = 5 um,
+    `n x n` grid 10 um wide): the force ramps to 10 nN in 0.15 s and holds for
+    1.5 s, 1 kHz; the depth is the model's plus white noise `noise` [m]; `pre`
+    baseline samples before contact. The file columns (`raw`) are consistent with
+    the depth: `height = h_c - depth - F / k`. Returns the curve and the scene made
+    it (its grid is the one to fit on: another grid's bias would show)."""
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    t = np.arange(0, 1.651, 1e-3)
+    force = 10e-9 * np.minimum(t / 0.15, 1.0)
+    template = jc.Scene(jc.Grid(shape=(n, n), size=(1e-5, 1e-5)), jc.Sphere(RADIUS),
+                        material, t, jc.Force(force))
+    depth = np.asarray(jc.solve(template, scheme="linear").approach)
+    depth = depth + noise * np.random.default_rng(seed).standard_normal(t.shape)
+    depth[0] = 0.0
+    seg = np.where(t <= 0.15 + 1e-12, 0, 1)
+    h_c = 30e-6
+    t_pre = -np.arange(pre, 0, -1) * 1e-3
+    raw_t = np.r_[t_pre, t]
+    raw_f = np.r_[np.zeros(pre), force]
+    raw_h = np.r_[h_c + 1e-9 * np.arange(pre, 0, -1), h_c - depth - force / K]
+    raw_seg = np.r_[np.zeros(pre, int), seg]
+    raw = {"time": raw_t, "force": raw_f, "height": raw_h, "segment": raw_seg,
+           "force_above_baseline": raw_f.copy(), "kept_codes": (0, 1),
+           "contact_index": pre, "piecewise_contact_index": pre}
+    curve = AFMCurve(time=t, force=force, depth=depth, segment=seg, mode="creep",
+                     spring_constant=K, contact_time=0.0, contact_height=h_c,
+                     baseline_force=0.0, baseline_noise=1e-11, path="synthetic",
+                     metadata={}, raw=raw, contact_note="given (synthetic)")
+    return curve, template
+
+
+# ---- pieces --------------------------------------------------------------------------
+
+
+def test_with_contact_moves_the_zero_and_keeps_the_curve_at_its_own_contact():
+    pytest.importorskip("afmformats")
+    c = jc.read_afm(CREEP, contact="viscoelastic", segments=("approach", "hold"))
+    ic = c.raw["contact_index"]
+    same = c.with_contact(ic)
+    np.testing.assert_array_equal(same.force, c.force)
+    np.testing.assert_array_equal(same.depth, c.depth)
+    later = c.with_contact(ic + 10)
+    # zeroed at the new contact, 10 samples (10 ms at 1 kHz) fewer in contact
+    assert later.time[0] == 0 and later.force[0] == 0 and later.depth[0] == 0
+    assert later.time.size == c.time.size - 10
+    assert later.contact_time == pytest.approx(c.contact_time + 0.010)
+    # the depth is measured from the new contact's height: smaller by what the
+    # first 10 samples indented (force and depth grow on the approach)
+    assert later.depth[-1] < c.depth[-1]
+    with pytest.raises(ValueError, match="index must be a sample index on the"):
+        c.with_contact(10**9)
+
+
+def test_apparent_hertz_recovers_the_modulus_of_a_hertz_curve():
+    e, nu = 1500.0, 0.5
+    d = np.linspace(0, 1e-6, 200)
+    f = 4 / 3 * e / (1 - nu**2) * math.sqrt(RADIUS) * d**1.5
+    curve = AFMCurve(time=d, force=f, depth=d, segment=np.zeros(200, int),
+                     mode="creep", spring_constant=K, contact_time=0.0,
+                     contact_height=0.0, baseline_force=0.0, baseline_noise=1e-11,
+                     path=None, metadata={}, raw={})
+    assert apparent_hertz(curve, RADIUS, nu)["E_Pa"] == pytest.approx(e, rel=1e-12)
+
+
+def test_relaxation_modulus_and_its_log_std_from_the_covariance():
+    """`log_std_of` is the linear propagation w^T C w of the log-parameters'
+    covariance: checked against central differences of log G(t) for a random C."""
+    m = jc.Prony(g_inf=100.0, g=[50.0, 20.0], tau=[0.1, 2.0], poisson=0.5)
+    assert quality.relaxation_modulus(m, 0.0) == pytest.approx(170.0)
+    assert quality.relaxation_modulus(m, 1e9) == pytest.approx(100.0)
+    rng = np.random.default_rng(0)
+    a = rng.standard_normal((5, 5)) * 0.1
+    cov = a @ a.T
+    for t in (0.0, 0.05, 1.0):
+        x0 = np.log([100.0, 50.0, 20.0, 0.1, 2.0])
+
+        def log_g(x, t=t):
+            g = np.exp(x)
+            return math.log(g[0] + g[1] * math.exp(-t / g[3])
+                            + g[2] * math.exp(-t / g[4]))
+
+        w = np.array([(log_g(x0 + h) - log_g(x0 - h)) / 2e-6
+                      for h in 1e-6 * np.eye(5)])
+        assert quality.log_std_of(m, cov, t) == pytest.approx(
+            math.sqrt(w @ cov @ w), rel=1e-6)
+    cov[1, 1] = np.inf  # an undetermined parameter makes G(t) undetermined
+    assert quality.log_std_of(m, cov, 0.0) == math.inf
+
+
+def test_youngs_moduli_are_2_g_1_plus_nu_with_the_moduli_at_0_and_the_approach():
+    m = jc.Prony(g_inf=100.0, g=[40.0], tau=[0.5], poisson=0.5)
+    params = {"g_inf_Pa": {"value": 100.0, "std": 5.0, "std_log": 0.05},
+              "g_Pa": [{"value": 40.0, "std": None, "std_log": None}]}
+    cov = np.diag([0.05**2, 0.1**2, 0.2**2])
+    for nu in (0.5, 0.3):
+        e = quality.youngs_moduli(params, m, nu, 0.25, None, cov)
+        f = 2 * (1 + nu)
+        assert e["E_inf_Pa"] == {"value": f * 100.0, "std": f * 5.0, "std_log": 0.05}
+        assert e["E_Pa"] == [{"value": f * 40.0, "std": None, "std_log": None}]
+        assert e["E_0_Pa"]["value"] == pytest.approx(f * 140.0)
+        assert e["E_at_approach_Pa"]["value"] == pytest.approx(
+            f * (100.0 + 40.0 * math.exp(-0.5)))
+        # E_0: log std sqrt((100 * 0.05)^2 + (40 * 0.1)^2) / 140 (tau does not enter)
+        assert e["E_0_Pa"]["std_log"] == pytest.approx(math.hypot(5.0, 4.0) / 140.0)
+    assert "E = 2 G (1 + nu)" in e["note"]
+
+
+def test_at_bounds_names_the_parameter_and_the_bound():
+    m = jc.Prony(g_inf=100.0, g=[40.0, 1e-3], tau=[0.0010001, 3.0], poisson=0.5)
+    found = quality.at_bounds(m, (1e-3, 3.0))
+    assert found == ["tau_1 = 0.001 s at its lower bound 0.001 s",
+                     "g_2 = 0.001 Pa at 0", "tau_2 = 3 s at its upper bound 3 s"]
+    assert quality.at_bounds(jc.Prony(100.0, [40.0], [0.5], 0.5), (1e-3, 3.0)) == []
+
+
+def test_contact_shift_is_the_larger_of_the_methods_and_the_noise():
+    c, _ = synthetic_creep()
+    shift, why = uncertainty.contact_shift(c, RADIUS, 0.5, 1500.0)
+    # Hertz force b delta^1.5 reaches the baseline noise 1e-11 N at delta_sigma
+    e_star = 1500.0 / 0.75
+    d_sigma = (1e-11 / (4 / 3 * e_star * math.sqrt(RADIUS))) ** (2 / 3)
+    assert why["noise_depth_m"] == pytest.approx(d_sigma)
+    app = c.depth[c.segment == 0]
+    assert why["noise_samples"] == int(np.argmax(app >= d_sigma))
+    assert shift == max(why["noise_samples"], 2) and why["methods_samples"] == 0
+    c.raw["piecewise_contact_index"] = c.raw["contact_index"] - 9
+    assert uncertainty.contact_shift(c, RADIUS, 0.5, 1500.0)[0] == max(9, shift)
+
+
+# ---- whole fits ----------------------------------------------------------------------
+
+
+def test_a_curve_the_model_made_is_good_and_its_truth_is_covered():
+    """The positive control: the model's own curve plus 2 nm of white noise, fitted on
+    its grid: good (every segment within 2 x the noise: measured ~1), nothing flagged
+    (`ok`), and every parameter within 3 reported (total) standard deviations of the
+    truth, which includes the contact point's and the grid's share."""
+    curve, template = synthetic_creep()
+    settings = AFMFitSettings(radius=RADIUS, arms=1, n=8, samples=(6, 16, 1),
+                              check_grid=False)
+    result = fit_afm_curve(curve, settings, template=template)
+    r = result.report
+    assert r["quality"]["verdict"] == "good", r["quality"]
+    for ratio in r["quality"]["by_segment"].values():
+        assert 0.8 < ratio < 1.3
+    assert result.ok and r["flags"] == [] and r["converged"]
+    p = r["parameters"]
+    for entry, truth in ((p["g_inf_Pa"], 400.0), (p["g_Pa"][0], 200.0),
+                         (p["tau_s"][0], 0.3)):
+        assert abs(math.log(entry["value"] / truth)) < 3 * entry["std_log"], entry
+        assert set(entry["std_log_components"]) == {"optimiser", "contact"}
+    e = r["youngs_moduli"]
+    assert e["E_inf_Pa"]["value"] == pytest.approx(3 * p["g_inf_Pa"]["value"])
+    assert e["approach_time_s"] == pytest.approx(0.15)
+
+
+def test_the_grid_bias_is_flagged_and_enters_the_uncertainty():
+    """The same curve made on a 16^2 grid and fitted on 8^2: the grid's bias (the
+    8^2 model against 16^2) exceeds the 0.2 nm noise, is flagged, and the grid
+    component of the uncertainty is the shift of the bias-corrected refit, which moves
+    the parameters towards the truth made on the finer grid."""
+    curve, made = synthetic_creep(noise=2e-10, n=16)
+    coarse = jc.Scene(jc.Grid(shape=(8, 8), size=made.grid.size), made.indenter,
+                      made.material, made.times, made.normal)
+    settings = AFMFitSettings(radius=RADIUS, arms=1, n=8, samples=(6, 16, 1))
+    r = fit_afm_curve(curve, settings, template=coarse).report
+    assert any(f.startswith("grid bias ") for f in r["flags"]), r["flags"]
+    assert r["discretisation_over_noise"] > 1
+    assert r["uncertainty"]["components"]["grid"]["refined"] == [16, 16]
+    g = r["parameters"]["g_inf_Pa"]
+    assert g["std_log_components"]["grid"] > 0
+    # the corrected refit is closer to 400 Pa than the 8^2 fit by the shift
+    assert abs(math.log(g["value"] / 400.0)) <= g["std_log"]
+
+
+def test_fit_command_flags_the_relaxation_files_misfit(tmp_path, capsys, monkeypatch):
+    """The relaxation file at a tiny size: a systematic misfit of its approach and
+    hold (the notes' model limitation), printed with the reasons, exit status 1; the
+    JSON carries the verdict, its criterion, the contact point as a position, the
+    apparent Hertz modulus and E at the approach's duration."""
+    pytest.importorskip("afmformats")
+    from jaxcontact._cli import main
+
+    monkeypatch.setenv("JAXCONTACT_CACHE_DIR", str(tmp_path / "xla"))
+    code = main(["fit", RELAX, "--radius", "5e-6", "--n", "8", "--arms", "1",
+                 "--samples", "4,8,1", "--out", str(tmp_path)])
+    text = capsys.readouterr().out
+    js = json.loads((tmp_path / "fmt-jpk-sr_cell1-0008_fit.json").read_text())
+    assert code == 1
+    assert js["quality"]["verdict"] == "systematic misfit"
+    assert "2 x the raw white noise" in js["quality"]["criterion"]
+    assert js["quality"]["by_segment"]["hold"] > 2
+    assert any(f.startswith("systematic misfit: ") for f in js["flags"])
+    assert "flagged (exit status 1):" in text and "systematic misfit" in text
+    c = js["contact_point"]
+    assert c["time_s"] == js["contact_time_s"] and c["height_m"] > 0
+    assert js["apparent_hertz"]["E_Pa"] > 0
+    e = js["youngs_moduli"]
+    assert e["E_inf_Pa"]["value"] < e["E_at_approach_Pa"]["value"] <= (
+        e["E_0_Pa"]["value"])
+    assert set(js["uncertainty"]["components"]) == {"contact", "grid"}
+    assert "E at the approach's duration" in text
+
+
+def test_fit_command_takes_a_folder_and_writes_a_summary(tmp_path, capsys,
+                                                         monkeypatch):
+    """A folder of two copies of the relaxation file: both fitted (tiny sizes), a
+    summary table on the console and in fit_summary.csv, a row a file."""
+    import csv
+    import shutil
+
+    pytest.importorskip("afmformats")
+    from jaxcontact._cli import main
+
+    monkeypatch.setenv("JAXCONTACT_CACHE_DIR", str(tmp_path / "xla"))
+    folder = tmp_path / "in"
+    folder.mkdir()
+    for name in ("cell.001.jpk-force", "cell.002.jpk-force"):
+        shutil.copy(RELAX, folder / name)
+    (folder / "notes.txt.bak").write_text("not a curve")
+    out = tmp_path / "out"
+    code = main(["fit", str(folder), "--radius", "5e-6", "--n", "8", "--arms", "1",
+                 "--samples", "4,8,1", "--no-analysis-uncertainty", "--out",
+                 str(out)])
+    assert code == 1  # the relaxation file's misfit, twice
+    text = capsys.readouterr().out
+    with open(out / "fit_summary.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [os.path.basename(r["file"]) for r in rows] == ["cell.001.jpk-force",
+                                                          "cell.002.jpk-force"]
+    assert rows[0]["E_inf_Pa"] == rows[1]["E_inf_Pa"]  # the same curve twice
+    assert "2 files: summary" in text
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert main(["fit", str(empty), "--radius", "5e-6", "--out", str(out)]) == 2
+    assert "holds no file afmformats reads" in capsys.readouterr().err
