@@ -26,11 +26,22 @@ residuals, `E(t)`); with several files also `DIR/fit_summary.csv` (a row a file)
 `gel.001`); outputs already in `DIR` are refused before any fit unless
 `--overwrite`, and so are two files with the same stem.
 
+A file of several curves (a force map: `.jpk-force-map`, `.jpk-qi-data`, ...) goes
+through `jc.fit_force_map`: each curve read and fitted as above (a line a curve on
+stderr), and written as `DIR/STEM_map.csv` (a row a curve: grid indices, stage
+position, quality, flags, E_0, E at the approach's duration, E_inf with their std,
+apparent Hertz E, relaxation times, contact time, the flags' text),
+`DIR/STEM_map.nc` (the whole `xarray.Dataset`, netCDF by xarray's scipy engine;
+skipped, and said, where it cannot write it) and `DIR/STEM_map.png` (maps of E at the
+approach's duration, E_inf and the quality; with matplotlib). Force-distance maps
+have no hold: the default segments fit their approach alone; `--segments
+approach,retract` adds the unloading up to the loss of contact.
+
 Exit status: 0 when every fit is certified (converged) with nothing flagged; 1 when a
-fit did not converge or was flagged (the console and the JSON list the reasons: a
-systematic misfit, a parameter at a bound, the grid's bias above the noise, a
-contact point that could not be placed, an implausible radius); 2 for bad input (the
-message names the bad value).
+fit (a curve of a map included) did not converge, was flagged or could not be made
+(the console and the JSON or CSV list the reasons: a systematic misfit, a parameter
+at a bound, the grid's bias above the noise, a contact point that could not be
+placed, an implausible radius); 2 for bad input (the message names the bad value).
 
 Compiled programs are cached on disk (`jc.enable_compilation_cache`: folder
 `JAXCONTACT_CACHE_DIR`, default `~/.cache/jaxcontact/xla`; `--no-cache` or
@@ -72,25 +83,34 @@ def output_stem(path) -> str:
     return Path(path).stem
 
 
-def fit_outputs(stem) -> list:
-    """The files `jaxcontact fit` writes in `--out` for one input of stem `stem`."""
+def fit_outputs(stem, kind="curve") -> list:
+    """The files `jaxcontact fit` writes in `--out` for one input of stem `stem`:
+    `kind="curve"` a one-curve file, `"map"` a file of several curves (a force map:
+    `_fit_map`)."""
+    if kind == "map":
+        return [f"{stem}_map.csv", f"{stem}_map.nc", f"{stem}_map.png"]
     return [f"{stem}_fit.json", f"{stem}_fit.png"]
 
 
-def _plan_outputs(files, out, overwrite) -> dict:
+def _plan_outputs(files, out, overwrite, maps=()) -> dict:
     """`{file: stem}` for the inputs, after checking (before any fit) that no two
-    files share a stem and that `out` can take every output (`prepare_out`: created,
-    writable, existing outputs refused unless `overwrite`); `InputError` otherwise."""
+    files of one kind (`maps`: the force maps among them) share a stem and that
+    `out` can take every output (`prepare_out`: created, writable, existing outputs
+    refused unless `overwrite`); `InputError` otherwise."""
     stems = {}
     for path in files:
-        stem = output_stem(path)
-        twin = next((f for f, s in stems.items() if s == stem), None)
+        stem, kind = output_stem(path), "map" if path in maps else "curve"
+        twin = next((f for f, s in stems.items()
+                     if s == stem and (f in maps) == (path in maps)), None)
         if twin is not None:
-            raise _BadInput(f"{twin!r} and {path!r} would both write {stem}_fit.json: "
-                            "fit them into different --out folders")
+            raise _BadInput(f"{twin!r} and {path!r} would both write "
+                            f"{fit_outputs(stem, kind)[0]}: fit them into different "
+                            "--out folders")
         stems[path] = stem
-    names = [name for s in stems.values() for name in fit_outputs(s)]
-    prepare_out(out, names + ([SUMMARY] if len(stems) > 1 else []), overwrite)
+    names = [name for p, s in stems.items()
+             for name in fit_outputs(s, "map" if p in maps else "curve")]
+    curves = sum(p not in maps for p in stems)
+    prepare_out(out, names + ([SUMMARY] if curves > 1 else []), overwrite)
     return stems
 
 
@@ -330,7 +350,8 @@ def run_fit(args) -> int:
                             '"jaxcontact[afm]"')
         files = expand_inputs(args.files)
         out = Path(args.out)
-        stems = _plan_outputs(files, out, args.overwrite)
+        maps = force_maps(files)
+        stems = _plan_outputs(files, out, args.overwrite, maps)
         import jax
 
         jax.config.update("jax_enable_x64", True)
@@ -341,6 +362,10 @@ def run_fit(args) -> int:
             enable_compilation_cache()
         status, rows = 0, []
         for path in files:
+            if path in maps:  # several curves: a map (`jc.fit_force_map`)
+                status = max(status, _fit_map(path, args, samples, segments,
+                                              out, stems[path], maps[path]))
+                continue
             result, fit, seg = _fit_one(path, args, samples, segments)
             stem = stems[path]
             json_path = out / f"{stem}_fit.json"
@@ -351,7 +376,7 @@ def run_fit(args) -> int:
             rows.append(summary_row(result))
             if result["flags"]:
                 status = 1
-        if len(files) > 1:
+        if len(rows) > 1:
             _write_summary(rows, out / SUMMARY)
         return status
     except InputError as exc:
@@ -443,3 +468,178 @@ def _print(r, json_path):
         print("  nothing flagged")
     print(f"  note: {RADIUS_NOTE}")
     print(f"  -> {json_path}" + (f", {r['plot']}" if r["plot"] else ""))
+
+
+# --------------------------------------------------------------------------------------
+# Files of several curves (force maps): `jc.fit_force_map`.
+
+
+MAP_COLUMNS = ("x", "y", "position_x_m", "position_y_m", "quality", "flags",
+               "converged", "arms", "E_0_Pa", "E_0_std_Pa", "E_at_approach_Pa",
+               "E_at_approach_std_Pa", "approach_time_s", "E_inf_Pa", "E_inf_std_Pa",
+               "apparent_hertz_E_Pa", "taus_s", "contact_time_s", "flag_text")
+
+
+def force_maps(files) -> dict:
+    """`{file: number of curves}` of the files among `files` that hold more than one
+    curve (afmformats): fitted as force maps. A file afmformats cannot read is left
+    to the one-curve path, whose error names it."""
+    import afmformats
+
+    missing = getattr(afmformats.errors, "MissingMetaDataError", Exception)
+    maps = {}
+    for path in files:
+        with warnings.catch_warnings():  # read_afm warns again when it reads it
+            warnings.simplefilter("ignore")
+            try:
+                count = len(afmformats.load_data(path))
+            except (Exception, missing):
+                continue
+        if count > 1:
+            maps[path] = count
+    return maps
+
+
+def map_rows(ds) -> list:
+    """The rows of `STEM_map.csv` (`MAP_COLUMNS`): a row a curve of the map `ds`
+    (`jc.fit_force_map`), in (y, x) order; numbers in SI units, NaN where absent."""
+    from ._force_map import QUALITY_NO_CURVE
+
+    rows = []
+    for j, y in enumerate(ds.y.values):
+        for i, x in enumerate(ds.x.values):
+            cell = ds.isel(y=j, x=i)
+            if str(cell.quality.values) == QUALITY_NO_CURVE:
+                continue
+            taus = cell.tau.values[: int(cell.arms)]
+            rows.append({
+                "x": int(x), "y": int(y),
+                "position_x_m": float(cell.position_x),
+                "position_y_m": float(cell.position_y),
+                "quality": str(cell.quality.values), "flags": int(cell.flags),
+                "converged": bool(cell.converged), "arms": int(cell.arms),
+                "E_0_Pa": float(cell.E_0), "E_0_std_Pa": float(cell.E_0_std),
+                "E_at_approach_Pa": float(cell.E_at_approach),
+                "E_at_approach_std_Pa": float(cell.E_at_approach_std),
+                "approach_time_s": float(cell.approach_time),
+                "E_inf_Pa": float(cell.E_inf), "E_inf_std_Pa": float(cell.E_inf_std),
+                "apparent_hertz_E_Pa": float(cell.apparent_hertz_E),
+                "taus_s": " ".join(f"{t:.6g}" for t in taus),
+                "contact_time_s": float(cell.contact_time),
+                "flag_text": str(cell.flag_text.values)})
+    return rows
+
+
+def _fit_map(path, args, samples, segments, out, stem, count) -> int:
+    """Fit the force map `path` (`jc.fit_force_map`, progress on stderr) and write
+    `STEM_map.csv`, `STEM_map.nc` (xarray's scipy engine: skipped, and said, where
+    it cannot write netCDF) and `STEM_map.png` (with matplotlib). Returns the exit
+    status: 1 when a curve is flagged or not fitted, else 0."""
+    import jaxcontact as jc
+
+    print(f"{path}: {count} curves, a force map (jc.fit_force_map; a line a curve "
+          "on stderr)", flush=True)
+    try:
+        ds = jc.fit_force_map(path, settings=_settings(args, samples, segments),
+                              baseline=args.baseline, contact=args.contact)
+    except ValueError as exc:
+        raise _BadInput(f"{path}: {exc}") from exc
+    written = []
+    csv_path = out / f"{stem}_map.csv"
+    rows = map_rows(ds)
+    with open(csv_path, "w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=MAP_COLUMNS)
+        writer.writeheader()
+        writer.writerows(rows)
+    written.append(str(csv_path))
+    nc = out / f"{stem}_map.nc"
+    try:
+        ds.to_netcdf(nc, engine="scipy")
+        written.append(str(nc))
+    except (ImportError, ValueError, TypeError) as exc:
+        nc.unlink(missing_ok=True)  # no partial or stale file
+        print(f"  {nc.name} not written: xarray cannot write netCDF here ({exc})")
+    png = _plot_map(ds, out / f"{stem}_map.png", Path(path).name)
+    if png is None:
+        (out / f"{stem}_map.png").unlink(missing_ok=True)
+        print(f"  {stem}_map.png not written: matplotlib is not installed")
+    else:
+        written.append(str(png))
+    _print_map(ds, rows)
+    print(f"  note: {RADIUS_NOTE}")
+    print("  -> " + ", ".join(written))
+    return 1 if any(r["flags"] for r in rows) else 0
+
+
+def _print_map(ds, rows):
+    import numpy as np
+
+    flagged = [r for r in rows if r["flags"]]
+    a = ds.attrs
+    print(f"  force map: {len(rows)} curves on a {ds.sizes['y']} x {ds.sizes['x']} "
+          f"grid (grid indices y {int(ds.y.min())}..{int(ds.y.max())}, x "
+          f"{int(ds.x.min())}..{int(ds.x.max())}), {a['curve_mode']}, segments "
+          f"{a['segments']}, grid {a['n']}^2, R = {a['radius_m']:g} m, nu = "
+          f"{a['poisson']:g}")
+    for key, label in (("E_at_approach", "E at the approach's duration"),
+                       ("E_inf", "E_inf"), ("apparent_hertz_E", "apparent Hertz E")):
+        v = np.asarray(ds[key].values, float)
+        v = v[np.isfinite(v)]
+        if v.size:
+            print(f"  {label}: median {np.median(v):.4g} Pa, range {v.min():.4g} .. "
+                  f"{v.max():.4g} Pa")
+    verdicts = {}
+    for r in rows:
+        verdicts[r["quality"]] = verdicts.get(r["quality"], 0) + 1
+    print("  quality: " + ", ".join(f"{k} {v}" for k, v in sorted(verdicts.items()))
+          + f"; {len(flagged)} of {len(rows)} curves flagged"
+          + (" (exit status 1; the reasons in the CSV's flag_text)" if flagged
+             else ""))
+
+
+def _plot_map(ds, path, title):
+    """Maps of E at the approach's duration, E_inf and the quality; None without
+    matplotlib."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        from matplotlib.colors import ListedColormap
+    except ImportError:
+        return None
+    import numpy as np
+
+    quality = np.asarray(ds.quality.values).astype(str)
+    flags = np.asarray(ds.flags.values)
+    code = np.full(quality.shape, np.nan)
+    labels = ("good", "good, flagged", "systematic misfit", "not fitted")
+    code[(quality == "good") & (flags == 0)] = 0
+    code[(quality == "good") & (flags > 0)] = 1
+    code[quality == "systematic misfit"] = 2
+    code[quality == "not fitted"] = 3
+    extent = (float(ds.x.min()) - 0.5, float(ds.x.max()) + 0.5,
+              float(ds.y.min()) - 0.5, float(ds.y.max()) + 0.5)
+    fig, axes = plt.subplots(1, 3, figsize=(13, 4))
+    for ax, key, label in ((axes[0], "E_at_approach", "E(T) at the approach's duration "
+                                                      "[Pa]"),
+                           (axes[1], "E_inf", "E_inf [Pa]")):
+        img = ax.imshow(np.asarray(ds[key].values, float), origin="lower",
+                        extent=extent, interpolation="nearest", aspect="equal")
+        fig.colorbar(img, ax=ax, shrink=0.8, label=label)
+        ax.set_title(label, fontsize=9)
+    cmap = ListedColormap(["tab:green", "gold", "tab:orange", "tab:red"])
+    img = axes[2].imshow(code, origin="lower", extent=extent, interpolation="nearest",
+                         aspect="equal", cmap=cmap, vmin=-0.5, vmax=3.5)
+    bar = fig.colorbar(img, ax=axes[2], shrink=0.8, ticks=range(4))
+    bar.ax.set_yticklabels(labels, fontsize=8)
+    axes[2].set_title("quality (blank: no curve)", fontsize=9)
+    for ax in axes:
+        ax.set_xlabel("grid index x")
+        ax.set_ylabel("grid index y")
+    fig.suptitle(f"{title}: R = {ds.attrs['radius_m']:g} m, nu = "
+                 f"{ds.attrs['poisson']:g}, {ds.attrs['curve_mode']}", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path

@@ -529,6 +529,15 @@ def fit_dataset(fit, *, units=None, attrs: dict | None = None) -> xr.Dataset:
             "time", f"{label} relaxation times tau_i", table))
         data_vars[prefix + "poisson"] = ((), _np(material.poisson), _attrs(
             "1", f"{label} Poisson's ratio", table))
+    # Young's moduli E = 2 G (1 + nu) at the fitted Poisson's ratio (AFM users read E).
+    m = fit.material
+    factor = 2 * (1 + float(np.asarray(m.poisson)))
+    data_vars["E_inf"] = ((), factor * _np(m.g_inf), _attrs(
+        "stress", "Young's long-time modulus E_inf = 2 (1 + nu) g_inf", table))
+    data_vars["E"] = ("arm", factor * _np(m.g), _attrs(
+        "stress", "Young's arm moduli E_i = 2 (1 + nu) g_i", table))
+    data_vars["E_0"] = ((), factor * (_np(m.g_inf) + np.sum(_np(m.g))), _attrs(
+        "stress", "instantaneous Young's modulus E_0 = E_inf + sum E_i", table))
     data_vars.update({
         "log_std": ("parameter", np.array(std),
                 _attrs("1", "Gauss-Newton standard deviation of ln(parameter)", table)),

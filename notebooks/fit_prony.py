@@ -48,15 +48,17 @@ AFM_N = {"ci": 12, "small": 24, "paper": 48}[SIZE]          # grid of the real-f
 AFM_BINS = {"ci": {"approach": 6, "hold": 14, "retract": 5},
             "small": {"approach": 8, "hold": 24, "retract": 8},
             "paper": {"approach": 12, "hold": 40, "retract": 12}}[SIZE]
-OUT = os.environ.get("JAXCONTACT_NOTEBOOK_OUT")
+# Figures are saved to JAXCONTACT_NOTEBOOK_OUT, by default out/notebooks (a notebook
+# also shows them inline).
+OUT = os.environ.get("JAXCONTACT_NOTEBOOK_OUT") or os.path.join("out", "notebooks")
+print(f"figures -> {os.path.abspath(OUT)}")
 DATA = (Path(globals().get("__file__", "notebooks/x.py")).resolve().parents[1]
         / "tests" / "data")
 
 
 def show(fig, name):
-    if OUT:
-        os.makedirs(OUT, exist_ok=True)
-        fig.savefig(os.path.join(OUT, f"fit_prony_{name}.png"), dpi=100)
+    os.makedirs(OUT, exist_ok=True)
+    fig.savefig(os.path.join(OUT, f"fit_prony_{name}.png"), dpi=100)
 
 
 # %% [markdown]

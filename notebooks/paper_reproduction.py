@@ -48,7 +48,10 @@ P = jc.presets
 SIZE = os.environ.get("JAXCONTACT_NOTEBOOK_SIZE", "small")
 N = {"ci": 16, "small": 64, "paper": 256}[SIZE]
 CI = SIZE == "ci"
-OUT = os.environ.get("JAXCONTACT_NOTEBOOK_OUT")
+# Figures are saved to JAXCONTACT_NOTEBOOK_OUT, by default out/notebooks (a notebook
+# also shows them inline).
+OUT = os.environ.get("JAXCONTACT_NOTEBOOK_OUT") or os.path.join("out", "notebooks")
+print(f"figures -> {os.path.abspath(OUT)}")
 VERDICT_FILE = os.environ.get("JAXCONTACT_NOTEBOOK_VERDICTS") or (
     os.path.join(OUT, "paper_verdicts.json") if OUT else None
 )
@@ -72,9 +75,8 @@ def duration(paper_value, ci_value=None):
 
 
 def show(fig, name):
-    if OUT:
-        os.makedirs(OUT, exist_ok=True)
-        fig.savefig(os.path.join(OUT, f"paper_{name}.png"), dpi=80)
+    os.makedirs(OUT, exist_ok=True)
+    fig.savefig(os.path.join(OUT, f"paper_{name}.png"), dpi=80)
     plt.close(fig)
 
 

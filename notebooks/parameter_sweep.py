@@ -32,13 +32,15 @@ import jaxcontact as jc  # noqa: E402
 SIZE = os.environ.get("JAXCONTACT_NOTEBOOK_SIZE", "small")
 N = {"ci": 16, "small": 48, "paper": 128}[SIZE]
 BATCH = {"ci": 3, "small": 8, "paper": 16}[SIZE]
-OUT = os.environ.get("JAXCONTACT_NOTEBOOK_OUT")
+# Figures are saved to JAXCONTACT_NOTEBOOK_OUT, by default out/notebooks (a notebook
+# also shows them inline).
+OUT = os.environ.get("JAXCONTACT_NOTEBOOK_OUT") or os.path.join("out", "notebooks")
+print(f"figures -> {os.path.abspath(OUT)}")
 
 
 def show(fig, name):
-    if OUT:
-        os.makedirs(OUT, exist_ok=True)
-        fig.savefig(os.path.join(OUT, f"parameter_sweep_{name}.png"), dpi=100)
+    os.makedirs(OUT, exist_ok=True)
+    fig.savefig(os.path.join(OUT, f"parameter_sweep_{name}.png"), dpi=100)
 
 
 # %% [markdown]

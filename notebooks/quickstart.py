@@ -27,14 +27,16 @@ import jaxcontact as jc  # noqa: E402
 
 SIZE = os.environ.get("JAXCONTACT_NOTEBOOK_SIZE", "small")
 N = {"ci": 16, "small": 64, "paper": 256}[SIZE]
-OUT = os.environ.get("JAXCONTACT_NOTEBOOK_OUT")
+# Figures are saved to JAXCONTACT_NOTEBOOK_OUT, by default out/notebooks (a notebook
+# also shows them inline).
+OUT = os.environ.get("JAXCONTACT_NOTEBOOK_OUT") or os.path.join("out", "notebooks")
+print(f"figures -> {os.path.abspath(OUT)}")
 
 
 def show(fig, name):
-    """Save the figure when JAXCONTACT_NOTEBOOK_OUT is set (a notebook shows it)."""
-    if OUT:
-        os.makedirs(OUT, exist_ok=True)
-        fig.savefig(os.path.join(OUT, f"quickstart_{name}.png"), dpi=100)
+    """Save the figure to OUT (a notebook also shows it)."""
+    os.makedirs(OUT, exist_ok=True)
+    fig.savefig(os.path.join(OUT, f"quickstart_{name}.png"), dpi=100)
 
 
 # %% [markdown]

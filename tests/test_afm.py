@@ -489,65 +489,29 @@ def test_lee_radok_start_recovers_the_generating_series():
 
 
 @pytest.mark.slow
-def test_creep_file_hold_within_the_noise_at_64(tmp_path, capsys, monkeypatch):
-    """The issue's target on the creep file: `jaxcontact fit --n 64 --arms 4 --samples
-    40,100,8 --segments approach,hold` converges and the model reproduces the raw hold
-    samples to within 1.5 x their white noise (measured 1.41; 3 arms 1.54, 2 arms at
-    32^2 1.98; the closed-form floor is 1.22 with 4 arms:
-    `benchmarks/notes/fit_real_files.md`), with the grid's bias (the fitted curve on
-    128^2) below the raw noise (measured 0.35 x)."""
+def test_creep_file_at_48_holds_within_the_noise_and_flags_only_the_approach(
+        tmp_path, capsys, monkeypatch):
+    """The creep file with the defaults on a 48^2 grid (the grid the 32^2 run's flag
+    recommends: `jaxcontact fit FILE --radius 5e-6 --n 48`): converged, the raw hold
+    samples within 2 x their white noise (measured 1.96; 1.98 at 32^2), the grid's
+    bias below the noise (measured 0.75 x; 1.6 x at 32^2, flagged there), and one flag
+    left, the approach's misfit (measured 10.3 x at 32^2 and 48^2 alike: not the
+    grid's; `benchmarks/notes/fit_real_files.md`), so exit status 1."""
     import json
 
     pytest.importorskip("afmformats")
     from jaxcontact._cli import main
 
     monkeypatch.setenv("JAXCONTACT_CACHE_DIR", str(tmp_path / "xla"))
-    code = main(["fit", CREEP, "--radius", "5e-6", "--n", "64", "--arms", "4",
-                 "--samples", "40,100,8", "--segments", "approach,hold",
-                 "--out", str(tmp_path)])
+    code = main(["fit", CREEP, "--radius", "5e-6", "--n", "48", "--out",
+                 str(tmp_path)])
     capsys.readouterr()
     js = json.loads(
         (tmp_path / "fmt-jpk-cc_pr14-polymergel-2021.06.30_fit.json").read_text())
-    assert code == 0 and js["converged"], js.get("message")
-    assert js["hold_residual_over_noise_raw"] <= 1.5, js["hold_residual_over_noise_raw"]
-    assert js["discretisation_rms"] < js["noise_raw"]
+    assert js["converged"], js.get("message")
+    assert js["quality"]["by_segment"]["hold"] <= 2.0, js["quality"]
+    assert js["discretisation_over_noise"] < 1
+    assert code == 1 and len(js["flags"]) == 1, js["flags"]
+    assert js["flags"][0].startswith("systematic misfit: approach ")
 
 
-def test_fit_force_map_recovers_each_cells_scale():
-    """A 2 x 2 force map of the closed-form relaxation curve with its force scaled by
-    (1, 2 / 0.5, 1.5) cell by cell (noiseless, grid indices and stage positions in the
-    metadata as afmformats gives them for a JPK map): `jc.fit_force_map` returns the
-    map on (y, x), every cell converged, the moduli in the ratio of the scales and the
-    relaxation time the same in every cell (to 1e-3: the fit's tolerance; the force
-    is linear in the moduli), the positions as recorded."""
-    import jax
-
-    jax.config.update("jax_enable_x64", True)
-    base = synthetic_viscoelastic()
-    scales = {(0, 0): 1.0, (1, 0): 2.0, (0, 1): 0.5, (1, 1): 1.5}  # (x, y) -> factor
-    curves = []
-    for (x, y), s in scales.items():
-        cols = dict(base._c, force=s * base["force"])
-        curves.append(FakeCurve(cols, dict(base.metadata, **{
-            "grid index x": x, "grid index y": y,
-            "position x": 1e-5 * x, "position y": -2e-5 * y})))
-    ds = jc.fit_force_map(curves, 5e-6, 1, n=8, samples={"approach": 10, "hold": 15},
-                          contact="viscoelastic", init="lee-radok")
-    assert ds.g_inf.dims == ("y", "x") and ds.g.dims == ("y", "x", "arm")
-    assert list(ds.x.values) == [0, 1] and list(ds.y.values) == [0, 1]
-    assert bool(ds.converged.all()), ds.converged.values
-    assert ds.attrs["mode"] == "relaxation" and ds.attrs["radius_m"] == 5e-6
-    for (x, y), s in scales.items():
-        cell = ds.sel(x=x, y=y)
-        np.testing.assert_allclose(float(cell.g_inf) / float(ds.g_inf[0, 0]), s,
-                                   rtol=1e-3)
-        np.testing.assert_allclose(float(cell.g[0]) / float(ds.g[0, 0, 0]), s,
-                                   rtol=1e-3)
-        np.testing.assert_allclose(float(cell.tau[0]), float(ds.tau[0, 0, 0]),
-                                   rtol=1e-3)
-        assert float(cell.position_x) == 1e-5 * x
-        assert float(cell.position_y) == -2e-5 * y
-    with pytest.raises(ValueError, match="share a grid position"):
-        jc.fit_force_map(curves[:1] * 2, 5e-6, 1, n=8)
-    with pytest.raises(ValueError, match="holds no curve"):
-        jc.fit_force_map([], 5e-6, 1)

@@ -211,6 +211,10 @@ def test_fit_round_trip(tmp_path):
     np.testing.assert_array_equal(back["tau"].values, [0.1, 2.0])
     np.testing.assert_array_equal(back["initial_tau"].values, [0.2, 1.0])
     assert float(back["g_inf"]) == 100.0 and float(back["poisson"]) == 0.5
+    # Young's moduli at nu = 0.5: E = 3 G
+    assert float(back["E_inf"]) == 300.0 and float(back["E_0"]) == 510.0
+    np.testing.assert_array_equal(back["E"].values, [150.0, 60.0])
+    assert back["E"].attrs["units"] == "Pa"
     np.testing.assert_array_equal(back["log_std"].values, [0.1, 0.2, 0.3, 0.4, 0.5])
     np.testing.assert_array_equal(back["gradient"].sel(parameter="tau_2"), 5e-9)
     assert list(back["parameter"].values) == list(names)

@@ -147,6 +147,12 @@ def test_at_bounds_names_the_parameter_and_the_bound():
     assert quality.at_bounds(jc.Prony(100.0, [40.0], [0.5], 0.5), (1e-3, 3.0)) == []
 
 
+def test_finer_grid_follows_the_bias_as_n_to_the_minus_1_5():
+    assert quality.finer_grid(32, 1.6) == 48  # 32 x 1.6^(2/3) = 43.8
+    assert quality.finer_grid(32, 6.85) == 120  # 115.2
+    assert quality.finer_grid(8, 1.0) == 8
+
+
 def test_contact_shift_is_the_larger_of_the_methods_and_the_noise():
     c, _ = synthetic_creep()
     shift, why = uncertainty.contact_shift(c, RADIUS, 0.5, 1500.0)
@@ -198,7 +204,8 @@ def test_the_grid_bias_is_flagged_and_enters_the_uncertainty():
                       made.material, made.times, made.normal)
     settings = AFMFitSettings(radius=RADIUS, arms=1, n=8, samples=(6, 16, 1))
     r = fit_afm_curve(curve, settings, template=coarse).report
-    assert any(f.startswith("grid bias ") for f in r["flags"]), r["flags"]
+    grid = [f for f in r["flags"] if f.startswith("grid bias ")]
+    assert len(grid) == 1 and "brings it below the noise" in grid[0], r["flags"]
     assert r["discretisation_over_noise"] > 1
     assert r["uncertainty"]["components"]["grid"]["refined"] == [16, 16]
     g = r["parameters"]["g_inf_Pa"]

@@ -86,7 +86,8 @@ class PronyFit(eqx.Module):
         `arm` (the Maxwell arms, by increasing `tau`), `parameter` and `parameter_2`
         (`parameter_names`), `iteration`; variables `target`, `curve`, `residual`
         (on `time`, in force or length units by `kind`), the fitted `g_inf`, `g`,
-        `tau`, `poisson` and the starting `initial_*` values, `log_std` (this class's
+        `tau`, `poisson` and the starting `initial_*` values, the Young's moduli
+        `E_inf`, `E` (by arm) and `E_0` (`E = 2 G (1 + nu)`), `log_std` (this class's
         `std`; renamed: `Dataset.std` is a method) and `gradient` (of the natural
         logs, dimensionless), `covariance` (`parameter` x
         `parameter_2`) and `loss_history`; attributes `kind`, `loss`, `converged`

@@ -1,0 +1,153 @@
+"""`jaxcontact fit` on the two real AFM files: the numbers the README and the fitting
+guide quote, from the command they show, and the two-settings check of the
+uncertainty.
+
+For each file of `tests/data/` (creep: polymer gel, force clamp; relaxation: cell,
+height clamp; probe radius 5 um as everywhere in the docs) it runs, as a user would,
+
+    jaxcontact fit FILE --radius 5e-6 --out DIR --overwrite        (the defaults)
+    jaxcontact fit FILE --radius 5e-6 --samples 16,48,8 ...        (twice the bins)
+    jaxcontact fit FILE --radius 5e-6 --n 48 ...                   (a finer grid)
+
+and keeps from each JSON the quality verdict, the flags, the Young's moduli with their
+total standard deviation (optimiser, contact point, grid), the apparent Hertz modulus,
+the wall time and the console summary. The check: a modulus `q` of two settings
+agrees when `|log q_a - log q_b| <= sqrt(s_a^2 + s_b^2)` (`s`: each run's reported std
+of `log q`), i.e. the difference is within the reported uncertainty.
+
+    python benchmarks/fit_cli_real_files.py [--only creep|relaxation] [--settings a,b]
+
+Writes `benchmarks/results/fit_cli_real_files.json` (machine, commit, versions,
+settings, rows) and prints the tables. Minutes a run on a 2-core CPU (the fits).
+"""
+
+import argparse
+import json
+import math
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+
+ROOT = Path(__file__).resolve().parent.parent
+DATA = ROOT / "tests" / "data"
+FILES = {"creep": DATA / "fmt-jpk-cc_pr14-polymergel-2021.06.30.jpk-force",
+         "relaxation": DATA / "fmt-jpk-sr_cell1-0008.jpk-force"}
+SETTINGS = {"defaults": [], "bins x2": ["--samples", "16,48,8"], "n 48": ["--n", "48"]}
+MODULI = ("E_at_approach_Pa", "E_inf_Pa", "E_0_Pa")
+OUT = ROOT / "benchmarks" / "results" / "fit_cli_real_files.json"
+
+
+def run_cli(path, extra, out):
+    """One `jaxcontact fit` process: (report dict, console text, seconds, exit)."""
+    cmd = [sys.executable, "-m", "jaxcontact", "fit", str(path), "--radius", "5e-6",
+           "--out", str(out), "--overwrite", *extra]
+    start = time.perf_counter()
+    proc = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
+    seconds = time.perf_counter() - start
+    if proc.returncode not in (0, 1):
+        raise RuntimeError(f"{' '.join(cmd)} failed:\n{proc.stderr}")
+    report = json.loads((Path(out) / f"{path.stem}_fit.json").read_text())
+    return report, proc.stdout, seconds, proc.returncode
+
+
+def agreement(a, b):
+    """`{modulus: {a, b, std_log_a, std_log_b, z}}`, `z = |log a - log b| /
+    sqrt(s_a^2 + s_b^2)`: the two settings agree within their uncertainty at z <= 1."""
+    out = {}
+    for key in MODULI:
+        ea, eb = a["youngs_moduli"][key], b["youngs_moduli"][key]
+        sa, sb = ea["std_log"], eb["std_log"]
+        diff = abs(math.log(ea["value"] / eb["value"]))
+        scale = math.hypot(sa, sb) if sa is not None and sb is not None else math.inf
+        out[key] = {"a": ea["value"], "b": eb["value"], "std_log_a": sa,
+                    "std_log_b": sb, "log_difference": diff,
+                    "z": diff / scale if scale > 0 else math.inf}
+    return out
+
+
+def row(name, setting, report, seconds, code):
+    e = report["youngs_moduli"]
+    return {
+        "file": name, "setting": setting, "seconds": seconds, "exit": code,
+        "arms": report["arms"], "quality": report["quality"]["verdict"],
+        "by_segment": report["quality"]["by_segment"], "flags": report["flags"],
+        "caveats": report["caveats"],
+        **{key: {"value": e[key]["value"], "std": e[key]["std"],
+                 "std_log": e[key]["std_log"],
+                 "components": e[key].get("std_log_components")} for key in MODULI},
+        "apparent_hertz_E_Pa": report["apparent_hertz"]["E_Pa"],
+        "taus_s": [t["value"] for t in report["parameters"]["tau_s"]],
+        "grid_bias_over_noise": report["discretisation_over_noise"],
+        "contact_uncertainty_samples": (report["uncertainty"] or {}).get(
+            "components", {}).get("contact", {}).get("samples"),
+    }
+
+
+def machine():
+    import jax
+
+    import jaxcontact
+
+    cpu = platform.processor()
+    try:
+        with open("/proc/cpuinfo") as fh:
+            cpu = next(line.split(":", 1)[1].strip() for line in fh
+                       if line.startswith("model name"))
+    except (OSError, StopIteration):
+        pass
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT,
+                            capture_output=True, text=True).stdout.strip()
+    return {"cpu": cpu, "cores": os.cpu_count(), "python": platform.python_version(),
+            "jax": jax.__version__, "jaxcontact": jaxcontact.__version__,
+            "commit": commit}
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--only", choices=sorted(FILES), help="one file only")
+    p.add_argument("--settings", default=",".join(SETTINGS),
+                   help=f"comma-separated among {list(SETTINGS)}")
+    args = p.parse_args()
+    names = [args.only] if args.only else list(FILES)
+    chosen = [s.strip() for s in args.settings.split(",")]
+    rows, consoles, checks = [], {}, {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in names:
+            reports = {}
+            for setting in chosen:
+                report, text, seconds, code = run_cli(
+                    FILES[name], SETTINGS[setting], Path(tmp) / setting)
+                reports[setting] = report
+                rows.append(row(name, setting, report, seconds, code))
+                consoles[f"{name} / {setting}"] = text
+                print(text, f"[{seconds:.0f} s, exit {code}]", flush=True)
+            for other in chosen[1:]:
+                checks[f"{name}: defaults vs {other}"] = agreement(
+                    reports[chosen[0]], reports[other])
+    result = {"benchmark": "fit_cli_real_files", "machine": machine(),
+              "settings": {k: SETTINGS[k] for k in chosen}, "radius_m": 5e-6,
+              "rows": rows, "agreement": checks, "console": consoles}
+    OUT.write_text(json.dumps(result, indent=2))
+    print(f"-> {OUT}")
+    print("\n| file | setting | arms | quality | E(T_app) [Pa] | E_inf [Pa] | E_0 [Pa] "
+          "| Hertz E [Pa] | s | exit |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for r in rows:
+        cells = [f"{r[k]['value']:.4g} +- {r[k]['std']:.2g}" if r[k]["std"] is not None
+                 else f"{r[k]['value']:.4g}" for k in MODULI]
+        print(f"| {r['file']} | {r['setting']} | {r['arms']} | {r['quality']} | "
+              + " | ".join(cells) + f" | {r['apparent_hertz_E_Pa']:.4g} | "
+              f"{r['seconds']:.0f} | {r['exit']} |")
+    print("\n| check | " + " | ".join(f"z {k}" for k in MODULI) + " |")
+    print("|---|" + "---|" * len(MODULI))
+    for name, c in checks.items():
+        print(f"| {name} | " + " | ".join(f"{c[k]['z']:.2f}" for k in MODULI) + " |")
+
+
+if __name__ == "__main__":
+    main()
