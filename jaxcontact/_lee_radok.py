@@ -5,7 +5,7 @@ the start of `jc.fit_prony(init="lee-radok")` and the viscoelastic contact point
 import numpy as np
 
 
-def _lee_radok_columns(t, drive, taus):
+def lee_radok_columns(t, drive, taus):
     """`(n, 1 + m)` columns of the closed-form Lee-Radok response to a piecewise-linear
     `drive` (zero at `t[0]`): the drive itself and, for each time `tau` of `taus`,
     `h(t) = int_0^t exp(-(t - s) / tau) d drive(s)` (exact for piecewise-linear
@@ -53,9 +53,9 @@ def lee_radok_fit(time, force, depth, mode, *, arms=2, n_tau=20, start=0, weight
     span, first = float(t[-1] - t[0]), float(np.min(np.diff(t)))
     taus = np.geomspace(max(first, 1e-3 * span), span, n_tau)
     if mode == "relaxation":
-        cols, target = _lee_radok_columns(t, u, taus), f
+        cols, target = lee_radok_columns(t, u, taus), f
     else:
-        cols = _lee_radok_columns(t, f, taus)
+        cols = lee_radok_columns(t, f, taus)
         cols = np.concatenate([cols[:, :1], cols[:, :1] - cols[:, 1:]], axis=1)
         target = u
     w = np.ones(t.shape) if weights is None else np.asarray(weights, float)

@@ -7,6 +7,9 @@ differences). A model that reproduces the data leaves the noise: a ratio of 1. T
 is `"good"` when every fitted segment is within `QUALITY_LIMIT` of it, a
 `"systematic misfit"` otherwise, naming the segments.
 
+A systematic misfit is diagnosed with the closed-form floor (`fitting.floor`): the
+model's own limit, or the fit's shortfall.
+
 Flags (each makes `jaxcontact fit` exit 1): not converged, a systematic misfit, a
 parameter at a bound, the grid's bias above the noise, a contact point the
 viscoelastic refinement could not place, an implausible probe radius. Caveats (do not
@@ -17,6 +20,8 @@ approach (`E_0`); an indentation deeper than the probe's radius.
 import math
 
 import numpy as np
+
+from .floor import closed_form_floor
 
 
 # A model within the noise gives 1; 2 allows a systematic part of sqrt(3) x the noise.
@@ -212,10 +217,11 @@ def assess(fit, curve, problem, raw_res, raw_seg, disc, radius_note, uncertainty
     flags = []
     if not fit.converged:
         flags.append(f"not converged: {fit.message}")
+    floor = closed_form_floor(curve) if worse else None
     if worse:
         flags.append("systematic misfit: " + ", ".join(
             f"{k} {v:.3g} x the noise" for k, v in worse.items())
-            + f" (limit {QUALITY_LIMIT:g})")
+            + f" (limit {QUALITY_LIMIT:g}); " + misfit_diagnosis(worse, floor))
     for text in at_bounds(fit.material, problem.tau_bounds):
         flags.append(f"parameter at a bound: {text}")
     if disc is not None and disc > noise:
@@ -256,12 +262,38 @@ def assess(fit, curve, problem, raw_res, raw_seg, disc, radius_note, uncertainty
                           f"every fitted segment is within {QUALITY_LIMIT:g} x the "
                           "raw white noise (successive differences); 1 = the noise"),
             "limit": QUALITY_LIMIT, "by_segment": by_segment},
+        "closed_form_floor": floor,
         "discretisation_rms": disc,
         "discretisation_over_noise": None if disc is None else disc / noise,
         "uncertainty": None if uncertainty is None else uncertainty.summary(),
         "flags": flags,
         "caveats": caveats,
     }
+
+
+def misfit_diagnosis(worse, floor) -> str:
+    """Whose misfit it is, from the closed-form floor (`fitting.floor`): the model's
+    (the floor is above the limit too) or the fit's (the floor is below), and whether
+    the hold alone is one linear viscoelastic response. `worse`: {segment: ratio}."""
+    joint, parts = floor["joint"], []
+    for name in worse:
+        if name not in joint:
+            continue
+        if joint[name] > QUALITY_LIMIT:
+            parts.append(f"the model's floor in the {name} is {joint[name]:.3g} x "
+                         f"(closed form, {floor['arms']} arms): a limit of the model, "
+                         "not of the fit")
+        else:
+            parts.append(f"the model reaches {joint[name]:.3g} x in the {name} "
+                         f"(closed form, {floor['arms']} arms): the fit falls short "
+                         "(more arms, a finer --n, another contact point)")
+    alone = floor["hold_alone"]
+    if alone is not None and joint.get("hold", 0.0) > QUALITY_LIMIT:
+        parts.append(
+            f"the hold alone reaches {alone:.3g} x: the approach and the hold are not "
+            "one linear viscoelastic response of this model" if alone <= QUALITY_LIMIT
+            else f"even the hold alone is {alone:.3g} x at best")
+    return "; ".join(parts) if parts else "no closed-form floor for these segments"
 
 
 def _correlation(cov):
