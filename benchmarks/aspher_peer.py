@@ -58,6 +58,8 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 sys.path.insert(0, str(HERE))
 
+from _common import results_path  # noqa: E402
+
 import jaxcontact as jc  # noqa: E402
 
 
@@ -185,11 +187,11 @@ class JC:
 
 def conv_floor(jcase: JC, n: int, repeats: int = 5) -> float:
     """One padded convolution (rfft2/irfft2 on 2n x 2n), as benchmarks/hertz.py."""
-    import hertz
+    from _common import convolution_times
 
     spectrum = jcase.material.instantaneous_compliance * jcase.op.normal_spectrum(
         jcase.material.poisson)
-    return hertz.convolution_times(jcase.op, spectrum, n, jcase.dtype, repeats)["naive"]
+    return convolution_times(jcase.op, spectrum, n, jcase.dtype, repeats)["naive"]
 
 
 def iteration_cost(n: int, steps=(10, 40), repeats: int = 5) -> dict:
@@ -452,7 +454,7 @@ def main(argv=None) -> int:
                          "Python has it")
     ap.add_argument("--peer-python", default=os.environ.get(
         "JAXCONTACT_ASPHER_PYTHON", "/work/aspher-venv/bin/python"))
-    ap.add_argument("--out", default=str(HERE / "results" / "aspher_peer.json"))
+    ap.add_argument("--out", default=str(results_path("aspher_peer")))
     ap.add_argument("--summarise", metavar="JSON",
                     help="only (re)compute the equal-error summary of a results file")
     ap.add_argument("--iteration-cost", metavar="JSON",

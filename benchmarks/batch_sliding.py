@@ -19,14 +19,12 @@ two answers.
     python benchmarks/batch_sliding.py [--axis friction|load|material]
         [--coupling none|full] [--configs 8:0 8:3 8:8 64:20] [--max-steps 2000]
 
-Results: `benchmarks/results/batch_sliding.json` (friction, "none"), else
-`batch_sliding_{axis}_{coupling}.json`.
+Results: `benchmarks/results/batch_sliding/batch_sliding.json` (friction, "none"), else
+`batch_sliding_{axis}_{coupling}.json` beside it (layout: `results/SCHEMA.md`).
 """
 
 import argparse
 import json
-import os
-import platform
 import sys
 import time
 from pathlib import Path
@@ -42,6 +40,9 @@ import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from _common import header, results_path  # noqa: E402
+
 import jaxcontact as jc  # noqa: E402
 
 
@@ -57,15 +58,17 @@ def main():
     parser.add_argument("--out", default=None)
     args = parser.parse_args()
     if args.out is None:
-        name = ("batch_sliding.json"
+        name = ("batch_sliding"
                 if (args.axis, args.coupling) == ("friction", "none")
-                else f"batch_sliding_{args.axis}_{args.coupling}.json")
-        args.out = str(ROOT / "benchmarks/results" / name)
+                else f"batch_sliding_{args.axis}_{args.coupling}")
+        args.out = str(results_path("batch_sliding", name))
+    record = header("batch_sliding")
     rows = [run(args, *map(int, c.split(":"))) for c in args.configs]
-    Path(args.out).write_text(json.dumps(dict(
-        machine=dict(platform=platform.platform(), processor=platform.processor(),
-                     load_average=os.getloadavg(), jax=jax.__version__),
-        axis=args.axis, coupling=args.coupling, rows=rows), indent=1))
+    settings = dict(axis=args.axis, coupling=args.coupling, configs=args.configs,
+                    max_steps=args.max_steps, repeats=args.repeats)
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    Path(args.out).write_text(json.dumps(
+        dict(**record, settings=settings, rows=rows), indent=1))
 
 
 def run(args, batch_size, n_sliding):

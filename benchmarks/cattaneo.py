@@ -26,7 +26,7 @@ Usage::
     python benchmarks/cattaneo.py            # everything
     python benchmarks/cattaneo.py --quick    # small sizes, 30 Spence increments
 
-Results go to `benchmarks/results/cattaneo.json`.
+Results go to `benchmarks/results/cattaneo/cattaneo.json`.
 """
 
 import argparse
@@ -47,11 +47,21 @@ import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from _common import (  # noqa: E402
+    FORCE,
+    POISSON,
+    RADIUS,
+    SHEAR_MODULUS,
+    fft_floor,
+    results_path,
+)
 
 import jaxcontact as jc  # noqa: E402
 
 
-R, W, G, NU = 10e-3, 0.15, 1e6, 0.3
+R, W, G, NU = RADIUS, FORCE, SHEAR_MODULUS, POISSON
 A = float(jc.Hertz(R, W, G, NU).contact_radius)
 
 
@@ -140,10 +150,8 @@ def normal_vs_coupled(n=256, width=4.0, mu=0.3, repeats=3):
 def coupled_fft_floor(n, dtype, repeats=5):
     """Seconds of the FFT floor of ONE fully coupled iteration (DESIGN.md section 6):
     one forward and one inverse padded FFT per block (p, q_x, q_y), i.e. three padded
-    convolutions (`run._fft_floor`, median of `repeats` jitted loops)."""
-    import run
-
-    return 3 * run._fft_floor(jnp, n, dtype, repeats)
+    convolutions (`_common.fft_floor`, median of `repeats` jitted loops)."""
+    return 3 * fft_floor(n, dtype, repeats)
 
 
 def spence(n=105, width=2.3, increments=90, mu=0.2, dtype=jnp.float64, repeats=5):
@@ -259,7 +267,7 @@ def ratio_versus_tolerance(rtols=(1e-4, 1e-5, 1e-6, 1e-7, 1e-8), n=256, width=4.
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true")
-    parser.add_argument("--out", default=str(ROOT / "benchmarks/results/cattaneo.json"))
+    parser.add_argument("--out", default=str(results_path("cattaneo")))
     parser.add_argument("--only-ratio-tolerance", action="store_true",
                         help="run ratio_versus_tolerance alone and update its entry "
                         "in --out")

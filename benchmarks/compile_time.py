@@ -6,7 +6,7 @@ compiled program is shared: the first call (tracing + XLA compilation + the solv
 and a second call on the same scene (the solve alone). The solvers compared:
 
 - `default`: what `jc.solve` picks (coupled scenes: `JointPCG()` since session 20;
-  `Fallback(JointPCG(), Rounds())` before, `compile_time_before.json` older still);
+  `Fallback(JointPCG(), Rounds())` before);
 - `joint`: `jc.JointPCG()` alone on coupled scenes (the default elsewhere).
 
 Usage::
@@ -14,21 +14,24 @@ Usage::
     python benchmarks/compile_time.py                 # every preset, both solvers
     python benchmarks/compile_time.py --presets lc sliding --solvers default
 
-Results: `benchmarks/results/compile_time.json` (per row: preset, solver, first and
-second call [s], compile = first - second, iterations, converged; the machine block
-with its load average, since compile time on a shared 2-core machine varies ~2x).
+Results: `benchmarks/results/compile_time/compile_time.json` (`results/SCHEMA.md`; per
+row: preset, solver, first and second call [s], compile = first - second, iterations,
+converged; the machine block with its load average, since compile time on a shared
+2-core machine varies ~2x).
 """
 
 import argparse
 import json
 import os
-import platform
 import subprocess
 import sys
 from pathlib import Path
 
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from _common import header, results_path  # noqa: E402
+
 
 _CHILD = r"""
 import inspect, json, sys, time
@@ -66,8 +69,7 @@ def main():
     parser.add_argument("--solvers", nargs="+", default=["default", "joint"])
     parser.add_argument("--n", type=int, default=64)
     parser.add_argument("--steps", type=int, default=21)
-    parser.add_argument("--out",
-                        default=str(ROOT / "benchmarks/results/compile_time.json"))
+    parser.add_argument("--out", default=str(results_path("compile_time")))
     parser.add_argument("--root", default=str(ROOT),
                         help="the checkout whose jaxcontact is measured (e.g. an older "
                              "commit's `git archive`, for a before/after table)")
@@ -89,14 +91,11 @@ def main():
             else:
                 rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
             print(json.dumps(rows[-1]), flush=True)
-    result = dict(
-        benchmark="compile_time", n=args.n, steps=args.steps, label=args.label,
-        root=args.root,
-        machine=dict(platform=platform.platform(), processor=platform.processor(),
-                     cpu_count=os.cpu_count(), python=platform.python_version(),
-                     load_average_before=load_before,
-                     load_average_after=os.getloadavg()),
-        rows=rows)
+    result = header("compile_time")  # `commit` is this checkout's, not `--root`'s
+    result["machine"]["load_average_before"] = load_before
+    result["settings"] = dict(n=args.n, steps=args.steps, solvers=args.solvers,
+                              label=args.label, root=args.root)
+    result["rows"] = rows
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(result, indent=1))
     print(f"wrote {args.out}")

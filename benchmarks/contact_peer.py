@@ -52,7 +52,7 @@ Usage::
 Without an executable CONTACT is skipped (with a message) and jaxcontact still runs.
 CONTACT runs serially (one core); jaxcontact (XLA) may use every core the process is
 allowed: `--one-core` pins this process and CONTACT to one CPU. Results go to
-`benchmarks/results/contact_peer.json` (`--out`).
+`benchmarks/results/contact_peer/contact_peer.json` (`--out`).
 """
 
 from __future__ import annotations
@@ -83,7 +83,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 import contact_inputs  # noqa: E402
-from hertz import library_info, machine_info  # noqa: E402
+from _common import library_info, machine_info, results_path  # noqa: E402
 
 import jaxcontact as jc  # noqa: E402
 
@@ -559,7 +559,7 @@ def main():
         help="keep CONTACT's files here (default: a temporary folder)",
     )
     parser.add_argument(
-        "--out", default=str(ROOT / "benchmarks/results/contact_peer.json")
+        "--out", default=str(results_path("contact_peer"))
     )
     args = parser.parse_args()
     if args.quick:

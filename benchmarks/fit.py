@@ -22,15 +22,16 @@ Usage::
 
     python benchmarks/fit.py                 # 64^2 x 40
     python benchmarks/fit.py --n 32 --nt 20 --optimiser lm
-    python benchmarks/fit.py --n 16 --nt 20 --batch 16   # -> results/fit_batch.json
+    python benchmarks/fit.py --n 16 --nt 20 --batch 16   # -> results/fit/fit_batch.json
 
-Results go to `benchmarks/results/fit.json` (`--batch`: `fit_batch.json`), or `--out`.
+Results go to `benchmarks/results/fit/fit.json` (`--batch`: `fit_batch.json`), or
+`--out` (`results/SCHEMA.md`).
 """
 
 import argparse
 import json
 import os
-import platform
+import sys
 import time
 from pathlib import Path
 
@@ -42,6 +43,10 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
 import jaxcontact as jc  # noqa: E402
+
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import header, results_path  # noqa: E402
 
 
 R, NU = 3.5e-3, 0.38
@@ -141,20 +146,20 @@ def main():
     parser.add_argument("--batch", type=int, default=0,
                         help="time a batch of this many curves instead")
     parser.add_argument("--out", default=None,
-                        help="JSON path (default results/fit.json, with --batch "
-                             "results/fit_batch.json)")
+                        help="JSON path (default results/fit/fit.json, with "
+                             "--batch results/fit/fit_batch.json)")
     args = parser.parse_args()
     if args.batch:
-        result = {"machine": {"platform": platform.platform(),
-                              "cpu_count": os.cpu_count(), "jax": jax.__version__,
-                              "device": str(jax.devices()[0])},
-                  "dtype": "float64", "case": run_batch(args.n, args.nt, args.batch)}
-        out = Path(args.out or Path(__file__).parent / "results" / "fit_batch.json")
+        result = header("fit")
+        result["settings"] = dict(n=args.n, nt=args.nt, batch=args.batch,
+                                  dtype="float64")
+        result["rows"] = [run_batch(args.n, args.nt, args.batch)]
+        out = Path(args.out or results_path("fit", "fit_batch"))
         out.parent.mkdir(parents=True, exist_ok=True)
         out.write_text(json.dumps(result, indent=2))
         print("wrote", out)
         return
-    load_before = os.getloadavg()
+    result = header("fit")
     cases = []
     for optimiser in (("lm", "lbfgs") if args.optimiser == "both"
                       else (args.optimiser,)):
@@ -163,15 +168,11 @@ def main():
                                    for k, v in case["relative_errors"].items()}
         print(json.dumps(case), flush=True)
         cases.append(case)
-    result = {
-        "machine": {"platform": platform.platform(), "cpu_count": os.cpu_count(),
-                    "jax": jax.__version__, "device": str(jax.devices()[0]),
-                    "load_average_before": load_before,
-                    "load_average_after": os.getloadavg()},
-        "dtype": "float64",
-        "cases": cases,
-    }
-    out = Path(args.out or Path(__file__).parent / "results" / "fit.json")
+    result["machine"]["load_average_after"] = os.getloadavg()
+    result["settings"] = dict(n=args.n, nt=args.nt, optimiser=args.optimiser,
+                              dtype="float64")
+    result["rows"] = cases
+    out = Path(args.out or results_path("fit"))
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=2))
     print("wrote", out)

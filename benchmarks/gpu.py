@@ -28,7 +28,7 @@ Usage::
     python benchmarks/gpu.py                  # on a GPU: < 8 minutes on one H100/H200
     python benchmarks/gpu.py --quick --out /tmp/gpu_quick.json
 
-Results: `benchmarks/results/gpu.json` (the device's name and kind in `machine`).
+Results: `benchmarks/results/gpu/gpu.json` (the device's name and kind in `machine`).
 """
 
 import argparse
@@ -55,6 +55,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 sys.path.insert(0, str(HERE))
 
+from _common import results_path  # noqa: E402
 from aspher_peer import (  # noqa: E402
     FORCE,
     K_HIGH,
@@ -241,7 +242,7 @@ def main(argv=None) -> int:
                         help="seconds after which the remaining cases are skipped")
     parser.add_argument("--cases", nargs="+", default=list(CASES), choices=CASES,
                         help="which groups of cases to run (default: all)")
-    parser.add_argument("--out", default=str(HERE / "results" / "gpu.json"))
+    parser.add_argument("--out", default=str(results_path("gpu")))
     args = parser.parse_args(argv)
     plan = dict(QUICK if args.quick else FULL)
     if args.sizes:

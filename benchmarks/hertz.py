@@ -24,20 +24,16 @@ Usage::
     python benchmarks/hertz.py --quick --plot       # n = 64, 128, 256 (< 1 min)
     python benchmarks/hertz.py --dtypes float64 float32 --rtol 1e-10
 
-Results go to `benchmarks/results/hertz.json` (`--out`); `--plot` also writes a PNG
-(time against peak-pressure error, log-log) next to it.
+Results go to `benchmarks/results/hertz/hertz.json` (`--out`; `results/SCHEMA.md`);
+`--plot` also writes a PNG (time against peak-pressure error, log-log) next to it.
 """
 
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
 import math
-import os
-import platform
 import statistics
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -55,16 +51,24 @@ import numpy as np  # noqa: E402
 ROOT = Path(__file__).resolve().parent.parent
 # Benchmark the checkout this script lives in (the package need not be installed).
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from _common import (  # noqa: E402
+    FORCE,
+    POISSON,
+    RADIUS,
+    SHEAR_MODULUS,
+    convolution_times,
+    header,
+    machine_info,
+    results_path,
+)
 
 import jaxcontact as jc  # noqa: E402
 
 
 # ---- The problem ------------------------------------------------------------------
 
-RADIUS = 10e-3  # m
-FORCE = 0.15  # N
-SHEAR_MODULUS = 1e6  # Pa
-POISSON = 0.3
 DOMAIN_OVER_A = 4.0  # side of the square domain / Hertz contact radius
 
 DEFAULT_SIZES = (64, 128, 256, 512, 1024)
@@ -74,116 +78,10 @@ DTYPES = {"float64": jnp.float64, "float32": jnp.float32}
 MIN_ITERATIONS = 3
 
 
-# ---- Machine info -----------------------------------------------------------------
-
-
-def _cpu_model() -> str:
-    name = platform.processor()
-    try:
-        with open("/proc/cpuinfo") as f:
-            for line in f:
-                if line.lower().startswith("model name"):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return name
-
-
-def _git(*args) -> str | None:
-    try:
-        out = subprocess.run(
-            ["git", "-C", str(ROOT), *args], capture_output=True, text=True, timeout=10
-        )
-    except (OSError, subprocess.SubprocessError):
-        return None
-    return out.stdout.strip() if out.returncode == 0 else None
-
-
-def machine_info() -> dict:
-    dev = jax.devices()[0]
-    try:
-        usable = len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        usable = os.cpu_count()
-    return {
-        "platform": platform.platform(),
-        "processor": _cpu_model(),
-        "cpu_count": os.cpu_count(),
-        "cpu_count_usable": usable,
-        "python": platform.python_version(),
-        "jax": jax.__version__,
-        "jaxlib": getattr(jax.lib, "__version__", None) or _jaxlib_version(),
-        "numpy": np.__version__,
-        "device": str(dev),
-        "device_kind": getattr(dev, "device_kind", None),
-        "backend": jax.default_backend(),
-    }
-
-
-def _jaxlib_version():
-    try:
-        import jaxlib
-
-        return jaxlib.__version__
-    except Exception:  # pragma: no cover
-        return None
-
-
-def library_info() -> dict:
-    dirty = _git("status", "--porcelain", "--", "jaxcontact")
-    return {
-        "jaxcontact": jc.__version__,
-        "path": str(Path(jc.__file__).resolve().parent),
-        "git_commit": _git("rev-parse", "HEAD"),
-        "jaxcontact_dirty": None if dirty is None else bool(dirty),
-    }
-
-
-# ---- Timing helpers ---------------------------------------------------------------
-
-
 def _timed(fn):
     t = time.perf_counter()
     out = fn()
     return out, time.perf_counter() - t
-
-
-def time_loop(step, x0, repeats: int, target_s: float = 0.1) -> float:
-    """Seconds per iteration of `x <- step(x)` run inside a jitted `fori_loop`."""
-
-    @jax.jit
-    def loop(x, count):
-        return jax.lax.fori_loop(0, count, lambda i, y: step(y), x)
-
-    loop(x0, 1).block_until_ready()  # compile
-    _, t = _timed(lambda: loop(x0, 4).block_until_ready())
-    count = int(min(2000, max(3, math.ceil(target_s / max(t / 4, 1e-7)))))
-    times = []
-    for _ in range(repeats):
-        _, t = _timed(lambda: loop(x0, count).block_until_ready())
-        times.append(t / count)
-    return statistics.median(times)
-
-
-def convolution_times(op, spectrum, n: int, dtype, repeats: int) -> dict:
-    """Time of one padded FFT convolution: naive rfft2/irfft2 and the library's own."""
-    # Scale the kernel so that max|k| = 1/2: x <- conv(x) + x0 stays bounded (no
-    # overflow or denormals however many iterations run). The extra add is O(n^2).
-    k = (0.5 / jnp.max(jnp.abs(spectrum))) * spectrum
-    x, y = np.meshgrid(np.linspace(-1, 1, n), np.linspace(-1, 1, n), indexing="ij")
-    x0 = jnp.asarray(np.sqrt(np.maximum(1 - 4 * (x * x + y * y), 0)), dtype=dtype)
-
-    def naive(p):
-        q = jnp.fft.irfft2(jnp.fft.rfft2(p, s=(2 * n, 2 * n)) * k, s=(2 * n, 2 * n))
-        return q[:n, :n] + x0
-
-    def pruned(p):
-        return op.inverse(op.forward(p) * k) + x0
-
-    return {
-        "naive": time_loop(naive, x0, repeats),
-        "pruned": time_loop(pruned, x0, repeats),
-    }
 
 
 # ---- Errors against Hertz ---------------------------------------------------------
@@ -458,7 +356,7 @@ def parse_args(argv=None):
                     help="timed calls per case, the median is reported "
                          "(default %(default)s)")
     ap.add_argument("--out", type=Path,
-                    default=ROOT / "benchmarks" / "results" / "hertz.json",
+                    default=results_path("hertz"),
                     help="JSON output path (default %(default)s)")
     ap.add_argument("--plot", action="store_true",
                     help="also write a PNG (time vs peak-pressure error) next to the "
@@ -513,11 +411,7 @@ def main(argv=None) -> int:
 
     exponents = growth_exponents(rows)
     result = {
-        "benchmark": "hertz",
-        "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-        "command": " ".join([Path(sys.argv[0]).name,
-                             *(sys.argv[1:] if argv is None else argv)]),
-        "problem": problem,
+        **header("hertz", argv),
         "settings": {
             "sizes": args.sizes,
             "dtypes": args.dtypes,
@@ -526,12 +420,11 @@ def main(argv=None) -> int:
             "max_steps": args.max_steps,
             "repeats": args.repeats,
             "x64_enabled": bool(jax.config.jax_enable_x64),
+            "problem": problem,
         },
-        "machine": machine,
-        "library": library_info(),
         "notes": notes,
         "summary": {"iteration_growth_exponent": exponents},
-        "results": rows,
+        "rows": rows,
         "total_time_s": time.perf_counter() - t_start,
     }
 

@@ -33,14 +33,16 @@ Usage::
     python benchmarks/joint_robustness.py --quick    # one-step "full" cases only
     python benchmarks/joint_robustness.py --viscoelastic   # + 63 viscoelastic, ~2 min
 
-Results go to `benchmarks/results/joint_robustness.json`: per case its parameters,
-the iterations per step, `converged`, `fallback` (a step above `max_steps`), the
-final stick ratio and the wall time (including compilation: not a timing benchmark).
+Results go to `benchmarks/results/joint_robustness/joint_robustness.json`
+(`results/SCHEMA.md`): a row per case, its group (`elastic`, `viscoelastic`), its
+parameters, the iterations per step, `converged`, `fallback` (a step above
+`max_steps`), the final stick ratio and the wall time (including compilation: not a
+timing benchmark); `summary` per group.
 """
 
 import argparse
 import json
-import platform
+import sys
 import time
 from pathlib import Path
 
@@ -56,6 +58,10 @@ import jaxcontact as jc  # noqa: E402
 
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from _common import header, results_path  # noqa: E402
+
+
 R, W, G = 10e-3, 0.15, 1e6
 MAX_STEPS = 300
 
@@ -190,8 +196,7 @@ def main():
     parser.add_argument("--viscoelastic", action="store_true",
                         help="also the 63 viscoelastic scenes")
     parser.add_argument("--viscoelastic-only", action="store_true")
-    parser.add_argument(
-        "--out", default=str(ROOT / "benchmarks/results/joint_robustness.json"))
+    parser.add_argument("--out", default=str(results_path("joint_robustness")))
     args = parser.parse_args()
     rows = []
     for case in ([] if args.viscoelastic_only else cases(args.n, args.quick)):
@@ -216,11 +221,12 @@ def main():
     summary = summarise(rows) if rows else None
     visco_summary = summarise(visco) if visco else None
     print(summary, visco_summary)
-    machine = dict(platform=platform.platform(), processor=platform.processor(),
-                   python=platform.python_version(), jax=jax.__version__)
-    out = dict(machine=machine, max_steps=MAX_STEPS, summary=summary, cases=rows)
-    if visco:
-        out.update(viscoelastic_summary=visco_summary, viscoelastic_cases=visco)
+    settings = dict(n=args.n, quick=args.quick, viscoelastic=bool(visco),
+                    max_steps=MAX_STEPS)
+    out = dict(**header("joint_robustness"), settings=settings,
+               summary=dict(elastic=summary, viscoelastic=visco_summary),
+               rows=[dict(group="elastic", **r) for r in rows]
+               + [dict(group="viscoelastic", **r) for r in visco])
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(out, indent=1))
 

@@ -35,7 +35,7 @@ Usage::
     python benchmarks/run.py --full            # tens of minutes
     python benchmarks/run.py --quick --only hertz peers --no-plot
 
-Results: `benchmarks/results/run_{quick,full}.json` and, with matplotlib, PNG plots
+Results: `benchmarks/results/run/run_{quick,full}.json` and, with matplotlib, PNG plots
 `run_{quick,full}_{hertz,cattaneo,leeradok,scaling}.png` next to it.
 """
 
@@ -55,7 +55,19 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
-RESULTS = HERE / "results"
+sys.path.insert(0, str(HERE))
+
+from _common import (  # noqa: E402
+    FORCE,
+    POISSON,
+    RADIUS,
+    SHEAR_MODULUS,
+    fft_floor,
+    library_info,
+    machine_info,
+    results_path,
+)
+
 
 # Error of a peer (or of a loose jaxcontact tolerance) "matches" the reference error
 # when |e - e_ref| <= MATCH * |e_ref|, for every matched metric.
@@ -132,25 +144,6 @@ def _best_of(fn, repeats):
     return min(times), times, out
 
 
-def _fft_floor(jnp, n, dtype, repeats):
-    """Seconds of ONE padded convolution irfft2(rfft2(p, 2n x 2n) * k)[:n, :n] in a
-    jitted loop (hertz.time_loop), the floor of one CG iteration per coupled block."""
-    import hertz
-
-    k = jnp.full(
-        (2 * n, n + 1),
-        0.5,
-        dtype=jnp.complex128 if dtype == jnp.float64 else jnp.complex64,
-    )
-    x0 = jnp.linspace(0.0, 1.0, n * n, dtype=dtype).reshape(n, n)
-
-    def naive(p):
-        q = jnp.fft.irfft2(jnp.fft.rfft2(p, s=(2 * n, 2 * n)) * k, s=(2 * n, 2 * n))
-        return q[:n, :n] + x0
-
-    return hertz.time_loop(naive, x0, repeats)
-
-
 def worker_hertz(spec):
     jax, jnp, np, jc = _worker_imports()
     import hertz
@@ -173,12 +166,11 @@ def _cast(jnp, dtype, value):
 
 def worker_cattaneo(spec):
     jax, jnp, np, jc = _worker_imports()
-    import cattaneo  # constants R, W, G, NU, A of the Cattaneo-Mindlin benchmark
-
     base = _maxrss_mib()
     dtype = {"float64": jnp.float64, "float32": jnp.float32}[spec["dtype"]]
     n, mu, ratio, width = spec["n"], 0.3, 0.5, 4.0
-    R, W, G, NU, A = cattaneo.R, cattaneo.W, cattaneo.G, cattaneo.NU, cattaneo.A
+    R, W, G, NU = RADIUS, FORCE, SHEAR_MODULUS, POISSON  # cattaneo.py's sphere
+    A = float(jc.Hertz(R, W, G, NU).contact_radius)
     grid = jc.Grid((n, n), _cast(jnp, dtype, width * A))
     dx = float(grid.spacing[0])
     sphere = jc.Sphere(_cast(jnp, dtype, R), centre=jnp.zeros(2, dtype))
@@ -186,7 +178,7 @@ def worker_cattaneo(spec):
     op = jc.HalfSpace(grid, "none", tangential_y=False)
     c_ref = A * (1 - ratio) ** (1 / 3)
     delta_ref = 3 * mu * W * (2 - NU) / (16 * G * A) * (1 - (1 - ratio) ** (2 / 3))
-    floor = _fft_floor(jnp, n, dtype, spec["repeats"])
+    floor = fft_floor(n, dtype, spec["repeats"])
     rows = []
     for nt in spec["nts"]:
         fx = ratio * mu * W * np.arange(1, nt + 1) / nt
@@ -268,7 +260,7 @@ def worker_leeradok(spec):
     dx = float(grid.spacing[0])
     sphere = jc.Sphere(_cast(jnp, dtype, ve.R), centre=jnp.zeros(2, dtype))
     op = jc.HalfSpace(grid)
-    floor = _fft_floor(jnp, n, dtype, spec["repeats"])
+    floor = fft_floor(n, dtype, spec["repeats"])
     rows = []
     for nt in spec["nts"]:
         t_np = np.linspace(0.0, 3 * ve.TAU, nt)
@@ -384,16 +376,16 @@ def probe_peers(python):
 
 def worker_peers(spec):
     jax, jnp, np, jc = _worker_imports()
-    import hertz
+    import hertz  # DOMAIN_OVER_A
 
     base = _maxrss_mib()
     n, rounds, repeats = spec["n"], spec["rounds"], spec["repeats"]
-    hz = jc.Hertz(hertz.RADIUS, hertz.FORCE, hertz.SHEAR_MODULUS, hertz.POISSON)
+    hz = jc.Hertz(RADIUS, FORCE, SHEAR_MODULUS, POISSON)
     a, p0, delta = float(hz.contact_radius), float(hz.peak_pressure), float(hz.approach)
     size = hertz.DOMAIN_OVER_A * a
     e_star = float(hz.effective_modulus)
-    material = jc.Elastic(hertz.SHEAR_MODULUS, hertz.POISSON)
-    sphere = jc.Sphere(hertz.RADIUS)
+    material = jc.Elastic(SHEAR_MODULUS, POISSON)
+    sphere = jc.Sphere(RADIUS)
     dx = size / n
     tmp = Path(spec["tmpdir"])
 
@@ -442,7 +434,7 @@ def worker_peers(spec):
                     grid,
                     sphere,
                     material,
-                    force=hertz.FORCE * scale,
+                    force=FORCE * scale,
                     operator=op,
                     solver=jc.PolonskyKeer(rtol=rtol),
                     throw=False,
@@ -487,10 +479,10 @@ def worker_peers(spec):
                 "code": code,
                 "n": n,
                 "size": size,
-                "radius": hertz.RADIUS,
-                "force": hertz.FORCE,
+                "radius": RADIUS,
+                "force": FORCE,
                 "e_star": e_star,
-                "poisson": hertz.POISSON,
+                "poisson": POISSON,
                 "repeats": 1,
             }
             scale_tol = delta if code == "contactmechanics" else 1.0
@@ -995,7 +987,7 @@ def parse_args(argv=None):
         "--out",
         type=Path,
         default=None,
-        help="JSON path (default benchmarks/results/run_{quick,full}.json)",
+        help="JSON path (default benchmarks/results/run/run_{quick,full}.json)",
     )
     ap.add_argument("--no-plot", action="store_true", help="write no PNG")
     ap.add_argument(
@@ -1014,13 +1006,10 @@ def main(argv=None) -> int:
     mode = "full" if args.full else "quick"
     cfg = MODES[mode]
     parts = args.only or ["hertz", "cattaneo", "leeradok", "peers"]
-    out_path = args.out or RESULTS / f"run_{mode}.json"
+    out_path = args.out or results_path("run", f"run_{mode}")
     threads = args.peer_threads or ("both" if mode == "full" else "default")
     t0 = time.perf_counter()
-    sys.path.insert(0, str(HERE))
-    import hertz  # machine_info, library_info (imports jax in the parent only)
-
-    machine = hertz.machine_info()
+    machine = machine_info()  # imports jax (in the parent only)
     machine["load_average_before"] = _loadavg()
     log = lambda msg: print(msg, flush=True)  # noqa: E731
     log(
@@ -1038,7 +1027,7 @@ def main(argv=None) -> int:
         ),
         "settings": {**cfg, "parts": parts, "match": MATCH, "peer_threads": threads},
         "machine": machine,
-        "library": hertz.library_info(),
+        "library": library_info(),
         "memory_method": (
             "peak resident set size (resource.getrusage(RUSAGE_SELF).ru_maxrss, KiB on "
             "Linux, reported in MiB) of the subprocess that ran the case, which "

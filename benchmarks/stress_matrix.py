@@ -15,14 +15,14 @@ Usage::
     python benchmarks/stress_matrix.py             # every group
     python benchmarks/stress_matrix.py --groups units friction
 
-Results: `benchmarks/results/stress_matrix.json`; `--table` prints the Markdown table
-of `benchmarks/README.md` from it.
+Results: `benchmarks/results/stress_matrix/stress_matrix.json` (`results/SCHEMA.md`);
+`--table` prints the Markdown table of the cells from it.
 """
 
 import argparse
 import json
 import os
-import platform
+import sys
 import time
 import warnings
 from pathlib import Path
@@ -38,7 +38,11 @@ import jaxcontact as jc  # noqa: E402
 
 
 ROOT = Path(__file__).resolve().parents[1]
-OUT = ROOT / "benchmarks/results/stress_matrix.json"
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from _common import header, results_path  # noqa: E402
+
+
+OUT = results_path("stress_matrix")
 
 R, W, G, NU = 10e-3, 0.15, 1.93e6, 0.3  # sphere [m], load [N], modulus [Pa]
 TAU = 0.01  # [s]
@@ -218,16 +222,16 @@ def main():
     if args.table:
         print(table(json.loads(Path(args.out).read_text())))
         return
-    machine = dict(platform=platform.platform(), cpu_count=os.cpu_count(),
-                   jax=jax.__version__, load_average_before=os.getloadavg())
+    record = header("stress_matrix")
     rows = []
     for group, label, scene in cells(args.groups):
         row = dict(group=group, cell=label, **measure(scene))
         rows.append(row)
         print(json.dumps(row), flush=True)
         jax.clear_caches()  # each cell its own programs: bounded memory maps
-    machine["load_average_after"] = os.getloadavg()
-    data = dict(benchmark="stress_matrix", machine=machine, rows=flag(rows))
+    record["machine"]["load_average_after"] = os.getloadavg()
+    data = dict(**record, settings=dict(groups=args.groups), rows=flag(rows))
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(data, indent=1))
     print(table(data))
 

@@ -23,7 +23,7 @@ Usage::
     python benchmarks/viscoelastic.py             # everything
     python benchmarks/viscoelastic.py --parts cd  # some parts, merged into --out
 
-Results: `benchmarks/results/viscoelastic.json` (`--out`).
+Results: `benchmarks/results/viscoelastic/viscoelastic.json` (`--out`).
 """
 
 from __future__ import annotations
@@ -50,7 +50,7 @@ ROOT = HERE.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(HERE))
 
-from hertz import library_info, machine_info  # noqa: E402
+from _common import library_info, machine_info, results_path  # noqa: E402
 
 import jaxcontact as jc  # noqa: E402
 
@@ -420,7 +420,7 @@ def parse_args(argv=None):
         help="small sizes, skip part (e) and n = 256 in (a)",
     )
     parser.add_argument(
-        "--out", type=Path, default=HERE / "results" / "viscoelastic.json"
+        "--out", type=Path, default=results_path("viscoelastic")
     )
     parser.add_argument(
         "--parts",

@@ -1,14 +1,16 @@
 """The coupled gradient with the adjoint's GMRES "incremental" against "batched"
 (restart 20 and 40), timed, and the transposed applications counted in a separate run
-(a host callback per application). `python benchmarks/gmres_method_probe.py N` writes
-`$OUT/gmres_probe_N.json` (gradients.py's scenes, 50 steps, float64). Run on one H200
-at 256^2: `results/gradients_gmres_method_h200_256.json`."""
+(a host callback per application). `python benchmarks/experiments/gmres_method_probe.py
+N` writes `$OUT/gmres_probe_N.json` (gradients.py's scenes, 50 steps, float64). Run on
+one H200 at 256^2 (`git show
+cb0b2ae:benchmarks/results/gradients_gmres_method_h200_256.json`); the finding is in
+`benchmarks/notes/coupled_gradient.md`."""
 import json
 import os
 import sys
 
 
-sys.path.insert(0, "benchmarks")
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 import gradients as gb
 import jax
 import jax.numpy as jnp

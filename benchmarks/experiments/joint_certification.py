@@ -19,8 +19,8 @@ iteration bound). See `benchmarks/notes/joint.md` (2026-11-26).
 
 Usage::
 
-    python benchmarks/joint_certification.py spence
-    python benchmarks/joint_certification.py incompressible --coupling x
+    python benchmarks/experiments/joint_certification.py spence
+    python benchmarks/experiments/joint_certification.py incompressible --coupling x
 """
 
 import argparse

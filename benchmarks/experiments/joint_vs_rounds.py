@@ -28,12 +28,12 @@ callback, in a separate untimed run), equivalent coupled operator applications
 
 Usage::
 
-    python benchmarks/joint_vs_rounds.py            # n = 128 (Spence at 105)
-    python benchmarks/joint_vs_rounds.py --n 64
-    python benchmarks/joint_vs_rounds.py --speed    # jc.solve timings, both methods
+    python benchmarks/experiments/joint_vs_rounds.py         # n = 128 (Spence at 105)
+    python benchmarks/experiments/joint_vs_rounds.py --n 64
+    python benchmarks/experiments/joint_vs_rounds.py --speed # jc.solve, both methods
 
-Results go to `benchmarks/results/joint_vs_rounds.json` (`--speed`:
-`benchmarks/results/coupled_speed.json`).
+Results go to `benchmarks/results/joint_vs_rounds/joint_vs_rounds.json` (`--speed`:
+`benchmarks/results/joint_vs_rounds/coupled_speed.json`).
 
 Notes on the design of `jaxcontact/_solver/joint.py` (what was tried):
 
@@ -89,7 +89,7 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
 import jaxcontact as jc  # noqa: E402
@@ -364,8 +364,9 @@ def main():
                         help="--speed: suffix of the results file "
                              "(coupled_speed<tag>.json)")
     parser.add_argument("--increments", type=int, default=90)
-    parser.add_argument("--out",
-                        default=str(ROOT / "benchmarks/results/joint_vs_rounds.json"))
+    parser.add_argument(
+        "--out",
+        default=str(ROOT / "benchmarks/results/joint_vs_rounds/joint_vs_rounds.json"))
     args = parser.parse_args()
     if args.speed:
         results = dict(
@@ -378,6 +379,7 @@ def main():
             **speed(tuple(args.sizes), args.increments, args.repeats,
                     tuple(args.methods), args.widths))
         out = Path(args.out).with_name(f"coupled_speed{args.tag}.json")
+        out.parent.mkdir(parents=True, exist_ok=True)
         out.write_text(json.dumps(results, indent=2))
         print(f"wrote {out}")
         return

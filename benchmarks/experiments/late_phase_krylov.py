@@ -34,9 +34,9 @@ solver keeps its directions load-preserving by projection instead).
 
 Usage::
 
-    python benchmarks/late_phase_krylov.py [--n 128] [--iterations 12]
+    python benchmarks/experiments/late_phase_krylov.py [--n 128] [--iterations 12]
 
-Results go to `benchmarks/results/late_phase_krylov.json`.
+Results go to `benchmarks/results/late_phase_krylov/late_phase_krylov.json`.
 """
 
 import argparse
@@ -55,7 +55,7 @@ import numpy as np  # noqa: E402
 from jax.flatten_util import ravel_pytree  # noqa: E402
 
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
 import jaxcontact as jc  # noqa: E402
@@ -290,7 +290,8 @@ def main():
                for name, nu, c, ratio in cases for loads in (True, False)]
     out = dict(machine=platform.processor() or platform.machine(),
                jax=jax.__version__, dtype="float64", cases=results)
-    path = ROOT / "benchmarks" / "results" / "late_phase_krylov.json"
+    path = ROOT / "benchmarks/results/late_phase_krylov/late_phase_krylov.json"
+    path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(out, indent=1))
     print("wrote", path)
 

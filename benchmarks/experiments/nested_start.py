@@ -9,7 +9,7 @@ times after a compile, and the pressure's relative L2 error against a rtol 1e-10
 from the default start. `jc.solve_normal(start="nested")` is the variant with
 coarsest 128 and coarse rtol 1e-4 (session 26); this script compares the settings.
 
-Usage: python benchmarks/nested_start.py 512,1024 128
+Usage: python benchmarks/experiments/nested_start.py 512,1024 128
 """
 
 import sys
@@ -17,8 +17,8 @@ import time
 from pathlib import Path
 
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 import jax  # noqa: E402
 
 

@@ -25,10 +25,10 @@ certification; JointPCG's: `applications` of its statistics are not available th
 
 Usage::
 
-    python benchmarks/newton_vs_joint.py            # ~6 min on 2 cores
-    python benchmarks/newton_vs_joint.py --quick    # Spence at N = 15 only
+    python benchmarks/experiments/newton_vs_joint.py            # ~6 min on 2 cores
+    python benchmarks/experiments/newton_vs_joint.py --quick    # Spence at N = 15 only
 
-Results: `benchmarks/results/newton_vs_joint.json` (`--out`).
+Results: `benchmarks/results/newton_vs_joint/newton_vs_joint.json` (`--out`).
 """
 
 from __future__ import annotations
@@ -49,14 +49,14 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 import contact_inputs  # noqa: E402
 import contact_peer  # noqa: E402
 import joint_robustness as jr  # noqa: E402
-from hertz import library_info, machine_info  # noqa: E402
+from _common import library_info, machine_info  # noqa: E402
 from semismooth_newton import SemismoothNewton  # noqa: E402
 
 import jaxcontact as jc  # noqa: E402
@@ -160,7 +160,8 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true")
     parser.add_argument(
-        "--out", default=str(ROOT / "benchmarks/results/newton_vs_joint.json"))
+        "--out",
+        default=str(ROOT / "benchmarks/results/newton_vs_joint/newton_vs_joint.json"))
     args = parser.parse_args()
     rows = []
     for name, scene, tolerances in scenes(args.quick):
@@ -178,6 +179,7 @@ def main():
                   flush=True)
     out = dict(benchmark="newton_vs_joint", machine=machine_info(),
                libraries=library_info(), dtype="float64", rows=rows)
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(out, indent=1))
     print("wrote", args.out)
 

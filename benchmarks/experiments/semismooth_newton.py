@@ -2,7 +2,13 @@ r"""A semismooth Newton solver for one coupled frictional step (issue 27, item 4
 
 Built to be measured against `jc.JointPCG` behind the same solver interface
 (`AbstractStepSolver`: `jc.solve(scene, solver=SemismoothNewton(...))`); the
-comparison is `newton_vs_joint.py`, the outcome `notes/newton.md`.
+comparison is `newton_vs_joint.py`, the outcome `benchmarks/notes/newton.md` (it lost:
+2.5-6.8x slower than `JointPCG` with the same answers). A probe kept as the record of
+that measurement, not a maintained solver: it reads private names of `jaxcontact`
+(`_solver.joint`, `_solver.base`, `_solver.tangential`) and may stop running when they
+change. Its agreement test (`tests/test_semismooth_newton.py`: GMRES against a dense
+solve; Newton and `JointPCG` equal to 1e-8 on a 24^2 oblique coupled load) was
+retired with the move here; `git show 3547241:tests/test_semismooth_newton.py`.
 
 **The equations** (Alart & Curnier 1991; Hueeber, Stadler & Wohlmuth 2008 for the 3-D
 Coulomb disc). Unknowns `x = (p, q, a_z, a_t)`: pressure, shear `(nd, nx, ny)` and the
