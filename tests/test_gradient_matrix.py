@@ -1,10 +1,11 @@
 """Gradients across the scene space against central differences.
 
 The cases are `benchmarks/gradient_matrix.py`'s: the default selection runs its
-`default_slice()` (every axis value at least twice: coupling, normal control and
+`quick_slice()` (every axis value at least once: coupling, normal control and
 program, tangential program, material, slip law, time scheme, periodic grid,
 `jc.Surface`, the parameter, and `jit` / eager `grad` / forward-mode `jvp` / `vmap` /
-float32), the slow selection the whole matrix. They run compiled as
+float32), the slow selection the rest of `default_slice()` (every value twice) and the
+whole matrix. They run compiled as
 users compile: without the default selection's quick-compile flags
 (`tests/conftest.py`), whose code generation changes round-off. Each case runs in a
 process of its own, so that the test workers share them out.
@@ -109,7 +110,20 @@ def test_the_default_slice_covers_every_axis_value_twice():
     assert len(slice_) >= 30
 
 
-@pytest.mark.parametrize("case", gm.default_slice(), ids=lambda c: c.name)
+def test_the_quick_slice_covers_every_axis_value_once():
+    """The default suite's cases (`QUICK`) meet every value of every axis of the
+    matrix at least once; each is a case of the default slice."""
+    quick = gm.quick_slice()
+    assert len(quick) == len(gm.QUICK)
+    for field in ("coupling", "normal", "program", "tangential", "material", "slip",
+                  "scheme", "periodic", "surface", "parameter", "mode", "output"):
+        for value in {getattr(c, field) for c in gm.all_cases()}:
+            assert any(getattr(c, field) == value for c in quick), (field, value)
+
+
+@pytest.mark.parametrize("case", [
+    c if c.name in gm.QUICK else pytest.param(c, marks=pytest.mark.slow)
+    for c in gm.default_slice()], ids=lambda c: c.name)
 def test_gradient_against_central_differences(case, tmp_path):
     _assert_right(case, _run(case, tmp_path))
 
