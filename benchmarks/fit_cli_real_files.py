@@ -17,9 +17,12 @@ agrees when `|log q_a - log q_b| <= sqrt(s_a^2 + s_b^2)` (`s`: each run's report
 of `log q`), i.e. the difference is within the reported uncertainty.
 
     python benchmarks/fit_cli_real_files.py [--only creep|relaxation] [--settings a,b]
+                                            [--write-docs] [--tables]
 
 Writes `benchmarks/results/fit_cli_real_files.json` (machine, commit, versions,
-settings, rows) and prints the tables. Minutes a run on a 2-core CPU (the fits).
+settings, rows) and prints the tables; `--write-docs` also writes them into
+`docs/guides/fitting.md` (between its markers), so no number there is typed by hand.
+About 20 minutes on a 2-core CPU (the fits).
 """
 
 import argparse
@@ -42,6 +45,8 @@ SETTINGS = {"defaults": [], "bins x2": ["--samples", "16,48,8"], "n 48": ["--n",
             "with retract": ["--segments", "approach,hold,retract"]}
 MODULI = ("E_at_approach_Pa", "E_inf_Pa", "E_0_Pa")
 OUT = ROOT / "benchmarks" / "results" / "fit_cli_real_files.json"
+BEGIN = "<!-- fit_cli_real_files.py: begin -->"
+END = "<!-- fit_cli_real_files.py: end -->"
 
 
 def run_cli(path, extra, out):
@@ -114,7 +119,17 @@ def main():
     p.add_argument("--only", choices=sorted(FILES), help="one file only")
     p.add_argument("--settings", default=",".join(SETTINGS),
                    help=f"comma-separated among {list(SETTINGS)}")
+    p.add_argument("--write-docs", action="store_true",
+                   help="write the tables into docs/guides/fitting.md")
+    p.add_argument("--tables", action="store_true",
+                   help="print the tables of the stored result only (no fits)")
     args = p.parse_args()
+    if args.tables:
+        result = json.loads(OUT.read_text())
+        print(tables(result))
+        if args.write_docs:
+            write_docs(result)
+        return
     names = [args.only] if args.only else list(FILES)
     chosen = [s.strip() for s in args.settings.split(",")]
     rows, consoles, checks = [], {}, {}
@@ -136,19 +151,45 @@ def main():
               "rows": rows, "agreement": checks, "console": consoles}
     OUT.write_text(json.dumps(result, indent=2))
     print(f"-> {OUT}")
-    print("\n| file | setting | arms | quality | E(T_app) [Pa] | E_inf [Pa] | E_0 [Pa] "
-          "| Hertz E [Pa] | s | exit |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
-    for r in rows:
+    print(tables(result))
+    if args.write_docs:
+        write_docs(result)
+
+
+def tables(result) -> str:
+    """The Markdown tables of a result: a row a run, then the agreement checks."""
+    m = result["machine"]
+    lines = [f"`jaxcontact fit FILE --radius 5e-6` on {m['cores']} cores ({m['cpu']}), "
+             f"jaxcontact {m['commit']}, float64; +- the reported total std "
+             "(optimiser, contact point, grid); s: the whole process's wall time.", "",
+             "| file | setting | arms | quality (approach, hold x the noise) | "
+             "E(T_app) [Pa] | E_inf [Pa] | E_0 [Pa] | Hertz E [Pa] | flags | s |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in result["rows"]:
         cells = [f"{r[k]['value']:.4g} +- {r[k]['std']:.2g}" if r[k]["std"] is not None
                  else f"{r[k]['value']:.4g}" for k in MODULI]
-        print(f"| {r['file']} | {r['setting']} | {r['arms']} | {r['quality']} | "
-              + " | ".join(cells) + f" | {r['apparent_hertz_E_Pa']:.4g} | "
-              f"{r['seconds']:.0f} | {r['exit']} |")
-    print("\n| check | " + " | ".join(f"z {k}" for k in MODULI) + " |")
-    print("|---|" + "---|" * len(MODULI))
-    for name, c in checks.items():
-        print(f"| {name} | " + " | ".join(f"{c[k]['z']:.2f}" for k in MODULI) + " |")
+        seg = ", ".join(f"{v:.3g}" for v in r["by_segment"].values())
+        lines.append(f"| {r['file']} | {r['setting']} | {r['arms']} | {r['quality']} "
+                     f"({seg}) | " + " | ".join(cells)
+                     + f" | {r['apparent_hertz_E_Pa']:.4g} | {len(r['flags'])} | "
+                     f"{r['seconds']:.0f} |")
+    lines += ["", "Agreement of each setting with the defaults: `z = |log a - log b| / "
+              "sqrt(s_a^2 + s_b^2)` (within the reported uncertainty at z <= 1).", "",
+              "| check | " + " | ".join(f"z {k.removesuffix('_Pa')}" for k in MODULI)
+              + " |", "|---|" + "---|" * len(MODULI)]
+    for name, c in result["agreement"].items():
+        lines.append(f"| {name} | " + " | ".join(f"{c[k]['z']:.2f}" for k in MODULI)
+                     + " |")
+    return "\n".join(lines)
+
+
+def write_docs(result):
+    """Replace the generated block of docs/guides/fitting.md by `tables(result)`."""
+    path = ROOT / "docs" / "guides" / "fitting.md"
+    text = path.read_text()
+    start, end = text.index(BEGIN) + len(BEGIN), text.index(END)
+    path.write_text(text[:start] + "\n" + tables(result) + "\n" + text[end:])
+    print(f"-> {path}")
 
 
 if __name__ == "__main__":
