@@ -606,6 +606,7 @@ def _plot_map(ds, path, title):
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
         from matplotlib.colors import ListedColormap
+        from matplotlib.ticker import MaxNLocator
     except ImportError:
         return None
     import numpy as np
@@ -626,7 +627,7 @@ def _plot_map(ds, path, title):
                            (axes[1], "E_inf", "E_inf [Pa]")):
         img = ax.imshow(np.asarray(ds[key].values, float), origin="lower",
                         extent=extent, interpolation="nearest", aspect="equal")
-        fig.colorbar(img, ax=ax, shrink=0.8, label=label)
+        fig.colorbar(img, ax=ax, shrink=0.8, label="Pa")
         ax.set_title(label, fontsize=9)
     cmap = ListedColormap(["tab:green", "gold", "tab:orange", "tab:red"])
     img = axes[2].imshow(code, origin="lower", extent=extent, interpolation="nearest",
@@ -637,6 +638,8 @@ def _plot_map(ds, path, title):
     for ax in axes:
         ax.set_xlabel("grid index x")
         ax.set_ylabel("grid index y")
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+        ax.yaxis.set_major_locator(MaxNLocator(integer=True))
     fig.suptitle(f"{title}: R = {ds.attrs['radius_m']:g} m, nu = "
                  f"{ds.attrs['poisson']:g}, {ds.attrs['curve_mode']}", fontsize=10)
     fig.tight_layout()

@@ -298,10 +298,8 @@ def fit_force_map(source, radius=None, *, settings=None, client=None,
     # -- The fits ----------------------------------------------------------------------
     n = len(raw)
     results = [None] * n
-    for k, text in read_errors.items():
-        results[k] = {"report": None, "error": text, "seconds": 0.0, "warnings": []}
     todo = [k for k in range(n) if curves[k] is not None]
-    done = len(read_errors)
+    done = 0
 
     def finished(k, result):
         nonlocal done
@@ -311,13 +309,12 @@ def fit_force_map(source, radius=None, *, settings=None, client=None,
             print(_progress_line(done, n, ix[k], iy[k], result), file=sys.stderr,
                   flush=True)
 
-    if progress:
-        for k in read_errors:
-            print(f"[-/{n}] x={ix[k]} y={iy[k]}: {QUALITY_NOT_FITTED} "
-                  f"({read_errors[k]})", file=sys.stderr, flush=True)
+    for k, text in read_errors.items():
+        finished(k, {"report": None, "error": text, "seconds": 0.0, "warnings": []})
     if client is None:
         for k in todo:
             finished(k, fit_cell(curves[k], settings))
+            curves[k] = None  # its raw columns are no longer needed
     else:
         import distributed
 

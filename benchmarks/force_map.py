@@ -1,0 +1,228 @@
+"""`jc.fit_force_map` on the committed force map at `jaxcontact fit`'s defaults: seconds
+per curve, the first with compilation, the rest reusing (or not) its programs.
+
+The map: `tests/data/fmt-jpk-fd_2020.02.07-16.29.05.036.jpk-qi-data` (4 curves of a
+JPK QI map, force-distance, no hold; see tests/data/README.md), radius 5 um (an
+input), the settings `AFMFitSettings(radius=5e-6)` = the command line's defaults
+(32^2 grid, 8 approach bins, 1..3 arms by BIC, tau bounded to what the data resolve,
+the grid check and the analysis refits; default segments: approach and hold, i.e.
+the approach alone here), float64, no persistent compilation cache (every program
+compiles in this process).
+
+Two passes over the map in one process: the first (cold: the first curve compiles
+the pipeline's programs; a later curve compiles what its own shapes or optimiser
+path need) and the second (warm: everything compiled; the steady cost of a curve).
+Each curve's compilations are counted from JAX's compile log
+(`jax_log_compiles`): number and seconds, by program.
+
+Usage::
+
+    python benchmarks/force_map.py [--passes 2] [--tiny]
+
+Writes `benchmarks/results/force_map/force_map.json` (`results/SCHEMA.md`: a row per
+pass and curve, with the stages' seconds: the fits for each arm count, the analysis
+refits, the grid check, the raw residual).
+"""
+
+import argparse
+import collections
+import json
+import logging
+import os
+import re
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import ROOT, header, results_path  # noqa: E402
+
+
+MAP = ROOT / "tests" / "data" / "fmt-jpk-fd_2020.02.07-16.29.05.036.jpk-qi-data"
+RADIUS = 5e-6
+_FINISHED = re.compile(r"Finished XLA compilation of (.+?) in ([0-9.eE+-]+) s")
+
+
+class CompileLog(logging.Handler):
+    """Collects JAX's "Finished XLA compilation of NAME in S s" records."""
+
+    def __init__(self):
+        super().__init__(logging.DEBUG)
+        self.records = []
+
+    def emit(self, record):
+        m = _FINISHED.search(record.getMessage())
+        if m:
+            self.records.append((m.group(1), float(m.group(2))))
+
+    def take(self) -> dict:
+        out, self.records = self.records, []
+        by_program = collections.Counter()
+        for name, seconds in out:
+            by_program[name] += seconds
+        return {"count": len(out), "seconds": round(sum(s for _, s in out), 3),
+                "top": [[k, round(v, 3)] for k, v in by_program.most_common(6)]}
+
+
+class StageTimes:
+    """Wall seconds of the pipeline's stages inside `fit_afm_curve` (wrappers that
+    only time: the fits for each arm count, the analysis refits, the grid check, the
+    raw residual)."""
+
+    def __init__(self):
+        from jaxcontact.fitting import afm
+
+        self.seconds = collections.Counter()
+        fit, disc = afm._Problem.fit, afm._Problem.discretisation
+        raw, unc = afm.raw_residual, afm.analysis_uncertainty
+        depth = [0]  # the refits inside analysis_uncertainty are counted there
+
+        def timed(fn, label):
+            def wrapper(*args, **kwargs):
+                depth[0] += 1
+                t = time.perf_counter()
+                try:
+                    return fn(*args, **kwargs)
+                finally:
+                    depth[0] -= 1
+                    if depth[0] == 0:
+                        name = label(args) if callable(label) else label
+                        self.seconds[name] += time.perf_counter() - t
+            return wrapper
+
+        afm._Problem.fit = timed(fit, lambda a: f"fit_arms{a[1]}_s")
+        afm._Problem.discretisation = timed(disc, "grid_check_s")
+        afm.raw_residual = timed(raw, "raw_residual_s")
+        afm.analysis_uncertainty = timed(unc, "analysis_refits_s")
+
+    def take(self) -> dict:
+        out = {k: round(v, 3) for k, v in sorted(self.seconds.items())}
+        self.seconds.clear()
+        return out
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--passes", type=int, default=2)
+    ap.add_argument("--tiny", action="store_true",
+                    help="tests/test_force_map.py's tiny settings (8^2, 8 approach "
+                         "bins, 1 arm, no refits, no grid check) instead of the "
+                         "command line's defaults; writes force_map_tiny.json")
+    args = ap.parse_args()
+
+    import warnings
+
+    import afmformats
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    jax.config.update("jax_log_compiles", True)
+    log = CompileLog()
+    jax_logger = logging.getLogger("jax")
+    jax_logger.addHandler(log)
+    jax_logger.setLevel(logging.DEBUG)
+    jax_logger.propagate = False  # not on the console
+
+    import jaxcontact as jc
+    from jaxcontact._force_map import _cell_values, fit_cell
+
+    settings = (jc.AFMFitSettings(radius=RADIUS, n=8, samples=(8, 8, 4), arms=1,
+                                  analysis_uncertainty=False, check_grid=False)
+                if args.tiny else jc.AFMFitSettings(radius=RADIUS))
+    stages = StageTimes()
+    load_before = os.getloadavg()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        raw = afmformats.load_data(str(MAP))
+    rows = []
+    for p in range(args.passes):
+        for k, c in enumerate(raw):
+            t0 = time.perf_counter()
+            curve = jc.read_afm(c, contact="viscoelastic", segments=settings.segments)
+            t_read = time.perf_counter() - t0
+            log.take()
+            stages.take()
+            cpu0 = time.process_time()
+            result = fit_cell(curve, settings)
+            cpu = time.process_time() - cpu0
+            compiles = log.take()
+            row = {"pass": "cold" if p == 0 else "warm", "curve": k,
+                   "x": int(c.metadata["grid index x"]),
+                   "y": int(c.metadata["grid index y"]),
+                   "raw_samples_in_contact": int(curve.time.size),
+                   "read_s": round(t_read, 3), "fit_s": round(result["seconds"], 3),
+                   "cpu_s": round(cpu, 3),
+                   "load_average_1min": round(os.getloadavg()[0], 2),
+                   "compilations": compiles["count"],
+                   "compile_s": compiles["seconds"],
+                   "compile_top": "; ".join(f"{n} {t:.1f} s"
+                                            for n, t in compiles["top"][:4]),
+                   **stages.take()}
+            if result["report"] is not None:
+                r = result["report"]
+                v = _cell_values(r)
+                row.update(
+                    samples=r["samples"], arms=v["arms"], quality=v["quality"],
+                    flags=len(r["flags"]), converged=v["converged"],
+                    E_0_Pa=v["E_0"], E_at_approach_Pa=v["E_at_approach"],
+                    E_inf_Pa=v["E_inf"], apparent_hertz_E_Pa=v["apparent_hertz_E"],
+                    taus_s=" ".join(f"{t:.4g}" for t in v["tau"]),
+                    residual_over_noise=v["residual_over_noise"],
+                    arms_at_a_bound=" ".join(
+                        a for a, ic in r["information_criteria"].items()
+                        if ic["at_bounds"]),
+                    arms_not_converged=" ".join(
+                        a for a, ic in r["information_criteria"].items()
+                        if not ic["converged"]),
+                    flag_text="; ".join(r["flags"]))
+            else:
+                row.update(quality="not fitted", flags=1, error=result["error"])
+            print(f"{row['pass']} curve {k}: fit {row['fit_s']:.1f} s (CPU "
+                  f"{row['cpu_s']:.1f} s), {row['compilations']} compilations "
+                  f"{row['compile_s']:.1f} s ({row['compile_top']}), "
+                  f"{row['quality']}, E(T) "
+                  f"{row.get('E_at_approach_Pa', float('nan')):.4g} Pa, "
+                  f"{row['flags']} flag(s)", flush=True)
+            rows.append(row)
+
+    cold = [r["fit_s"] for r in rows if r["pass"] == "cold"]
+    warm = [r["fit_s"] for r in rows if r["pass"] == "warm"]
+    summary = {"curves": len(raw), "cold_first_curve_s": cold[0],
+               "cold_later_curves_s": cold[1:], "cold_total_s": round(sum(cold), 3)}
+    notes = ["wall seconds on a shared machine: compare machine.load_average and "
+             "each row's load_average_1min with the cores; cpu_s is this process's "
+             "CPU time (all its threads), less sensitive to other processes",
+             "compile_s counts XLA's compilation only (jax_log_compiles), not the "
+             "tracing and lowering before it"]
+    if warm:
+        per_curve = float(np.mean(warm))
+        summary.update({
+            "warm_mean_s": round(per_curve, 3),
+            "extrapolated_64x64_h": round(64 * 64 * per_curve / 3600, 1),
+            "extrapolated_64x64_note": (
+                "an extrapolation, not a measurement: 4096 x the warm mean per curve "
+                "of these 4 curves, on this CPU, one process, no Dask; the "
+                "compilation (here cold total - 4 x warm mean) comes on top once, and "
+                "again for every raw sample count in contact, bin count or optimiser "
+                "path not seen before")})
+    result = {**header("force_map"),
+              "settings": {"map": str(MAP.relative_to(ROOT)),
+                           **json.loads(json.dumps(vars(settings), default=list)),
+                           "contact": "viscoelastic", "baseline": "constant",
+                           "x64": True, "persistent_cache": False,
+                           "passes": args.passes,
+                           "versions_extra": {"afmformats": afmformats.__version__}},
+              "rows": rows, "summary": summary, "notes": notes}
+    result["machine"]["load_average_before"] = list(load_before)
+    path = results_path("force_map", "force_map_tiny" if args.tiny else None)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(result, indent=2, default=float))
+    print(json.dumps(summary, indent=1))
+    print(f"-> {path}")
+
+
+if __name__ == "__main__":
+    main()
