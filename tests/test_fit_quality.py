@@ -321,3 +321,33 @@ def test_the_relaxation_files_misfit_is_the_models_not_the_fits():
     assert "a limit of the model" in text and (
         "the approach and the hold are not one linear viscoelastic response") in text
     assert "the fit falls short" in quality.misfit_diagnosis({"approach": 4.0}, fake)
+
+
+def test_an_arm_count_whose_fit_raises_is_recorded_and_skipped(monkeypatch):
+    """`arms="auto"`: a count whose fit raises (e.g. a start with a non-finite loss:
+    one curve of the committed QI map at 2 arms) is recorded with its message and the
+    curve is fitted with the others; only when every count raises does the curve."""
+    from jaxcontact.fitting import afm
+
+    curve, template = synthetic_creep()
+    original = afm._Problem.fit
+
+    def fit(self, arms, **kw):
+        if arms == 2 and "init" not in kw:
+            raise ValueError("non-finite loss at the initial guess (test)")
+        return original(self, arms, **kw)
+
+    monkeypatch.setattr(afm._Problem, "fit", fit)
+    settings = AFMFitSettings(radius=RADIUS, arms="auto", n=8, samples=(6, 16, 1),
+                              check_grid=False, analysis_uncertainty=False)
+    r = fit_afm_curve(curve, settings, template=template).report
+    assert r["information_criteria"]["2"] == {
+        "error": "non-finite loss at the initial guess (test)"}
+    assert r["arms"] in (1, 3) and "aic" in r["information_criteria"]["1"]
+
+    def always(self, arms, **kw):
+        raise ValueError("no start")
+
+    monkeypatch.setattr(afm._Problem, "fit", always)
+    with pytest.raises(ValueError, match="no arm count could be fitted"):
+        fit_afm_curve(curve, settings, template=template)

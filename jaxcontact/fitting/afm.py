@@ -4,10 +4,11 @@ The pipeline, shared by the command line and `jc.fit_force_map`:
 
 1. bin the curve (`AFMFitSettings.samples` points in the approach, hold, retract; the
    bins' means weighted by `sqrt(count)`, the inverse of their noise);
-2. fit `jc.fit_prony` for each arm count (`arms="auto"`: 1 to `MAX_AUTO_ARMS`, the
-   converged fit with no parameter at a bound and the smallest BIC), from the
-   closed-form Lee & Radok start, relaxation times bounded to what the data resolve
-   (`tau_bounds="auto"`: the raw sampling step to the data's duration);
+2. fit `jc.fit_prony` for each arm count (`arms="auto"`: 1 to `MAX_AUTO_ARMS`, up to
+   the first with a parameter at a bound; the converged fit with no parameter at a
+   bound and the smallest BIC; a count whose fit raises is recorded and skipped),
+   from the closed-form Lee & Radok start, relaxation times bounded to what the data
+   resolve (`tau_bounds="auto"`: the raw sampling step to the data's duration);
 3. judge it (`fitting.quality`): the residual of the RAW samples of each fitted segment
    against their white noise, the grid's bias, parameters at a bound, the contact
    point's refinement;
@@ -182,16 +183,24 @@ def fit_afm_curve(curve, settings: AFMFitSettings, *, template=None) -> AFMFit:
     if radius_note is not None:
         warnings.warn(radius_note, UserWarning, stacklevel=2)
     problem = _Problem.of(curve, settings, template=template)
-    fits = {}
+    fits, failed = {}, {}
     for k in ([settings.arms] if settings.arms != "auto" else
               range(1, MAX_AUTO_ARMS + 1)):
         if problem.times.size <= 2 * k + 2:
             break
-        fit = problem.fit(k)
+        try:
+            fit = problem.fit(k)
+        except ValueError as exc:  # e.g. a start with a non-finite loss: next count
+            failed[k] = str(exc)
+            continue
         fits[k] = (fit, *_information(fit, 1 + 2 * k),
                    at_bounds(fit.material, problem.tau_bounds))
+        if fits[k][3] and settings.arms == "auto":
+            break  # an arm the data do not resolve: more arms resolve less
     if not fits:
-        raise ValueError(f"{problem.times.size} samples are too few to fit")
+        reasons = "; ".join(f"{k} arm(s): {m}" for k, m in failed.items())
+        raise ValueError(f"{problem.times.size} samples are too few to fit"
+                         if not failed else f"no arm count could be fitted ({reasons})")
     best = _choose(fits)
     fit = fits[best][0]
     disc = problem.discretisation(fit) if settings.check_grid else None
@@ -209,9 +218,10 @@ def fit_afm_curve(curve, settings: AFMFitSettings, *, template=None) -> AFMFit:
             problem.times.size),
         "converged": bool(fit.converged), "message": fit.message,
         "information_criteria": {
-            str(k): {"aic": v[1], "bic": v[2], "loss": v[0].loss,
-                     "converged": bool(v[0].converged), "at_bounds": v[3]}
-            for k, v in fits.items()},
+            **{str(k): {"aic": v[1], "bic": v[2], "loss": v[0].loss,
+                        "converged": bool(v[0].converged), "at_bounds": v[3]}
+               for k, v in fits.items()},
+            **{str(k): {"error": message} for k, message in failed.items()}},
         "contact_point": {
             "time_s": curve.contact_time, "height_m": curve.contact_height,
             "force_N": curve.baseline_force,
@@ -272,6 +282,9 @@ class _Problem:
 
     def fit(self, arms, *, init=None, data=None):
         """`jc.fit_prony` of `arms` arms on these bins (or on `data`, same times)."""
+        import equinox as eqx
+        import jax.numpy as jnp
+
         import jaxcontact as jc
 
         from .start import lee_radok_start
@@ -285,6 +298,11 @@ class _Problem:
             except ValueError:  # too few loading samples: the default start
                 init = None
         bounds = {"tau": self.tau_bounds} if self.tau_bounds else None
+        if init is not None and self.tau_bounds:
+            # a start on or beyond a bound is where the bounded parametrisation is flat
+            lo, hi = self.tau_bounds
+            init = eqx.tree_at(lambda m: m.tau, init, jnp.clip(
+                jnp.asarray(init.tau), lo * 1.05, hi / 1.05))
         return jc.fit_prony(data, self.template, arms, weights=weights, init=init,
                             bounds=bounds,
                             options=jc.FitOptions(lm_steps=self.settings.steps))
