@@ -19,9 +19,10 @@ of `log q`), i.e. the difference is within the reported uncertainty.
     python benchmarks/fit_cli_real_files.py [--only creep|relaxation] [--settings a,b]
                                             [--write-docs] [--tables]
 
-Writes `benchmarks/results/fit_cli_real_files.json` (machine, commit, versions,
-settings, rows) and prints the tables; `--write-docs` also writes them into
-`docs/guides/fitting.md` (between its markers), so no number there is typed by hand.
+Writes `benchmarks/results/fit_cli_real_files/fit_cli_real_files.json` (machine,
+commit, versions, settings, rows) and prints the tables; `--write-docs` also writes
+them into `docs/guides/fitting.md` (between its markers), so no number there is typed
+by hand.
 About 20 minutes on a 2-core CPU (the fits).
 """
 
@@ -44,7 +45,8 @@ FILES = {"creep": DATA / "fmt-jpk-cc_pr14-polymergel-2021.06.30.jpk-force",
 SETTINGS = {"defaults": [], "bins x2": ["--samples", "16,48,8"], "n 48": ["--n", "48"],
             "with retract": ["--segments", "approach,hold,retract"]}
 MODULI = ("E_at_approach_Pa", "E_inf_Pa", "E_0_Pa")
-OUT = ROOT / "benchmarks" / "results" / "fit_cli_real_files.json"
+OUT = ROOT / "benchmarks" / "results" / "fit_cli_real_files" / "fit_cli_real_files.json"
+OUT.parent.mkdir(exist_ok=True)
 BEGIN = "<!-- fit_cli_real_files.py: begin -->"
 END = "<!-- fit_cli_real_files.py: end -->"
 

@@ -292,7 +292,11 @@ def misfit_diagnosis(worse, floor) -> str:
         parts.append(
             f"the hold alone reaches {alone:.3g} x: the approach and the hold are not "
             "one linear viscoelastic response of this model" if alone <= QUALITY_LIMIT
-            else f"even the hold alone is {alone:.3g} x at best")
+            else f"even the hold alone is {alone:.3g} x at best ({floor['arms']} arms)")
+    if "retract" in worse:
+        parts.append("the retract (the unloading) has no closed-form floor; a fitted "
+                     "retract also pulls the approach and hold: compare without it "
+                     "(--segments approach,hold, the default)")
     return "; ".join(parts) if parts else "no closed-form floor for these segments"
 
 
