@@ -440,6 +440,11 @@ def normal_dataset(
         _np(sol.edge_contact),
         _attrs("1", "contact reaches the outer ring of cells", table),
     )
+    data_vars["result"] = (
+        (),
+        _np(sol.result._value).astype(np.int32),
+        _attrs("1", "how the solve ended (jc.RESULTS)", table, **_result_attrs()),
+    )
     out_attrs = {
         **_common_attrs(table, "normal solution"),
         "grid_shape": np.array(grid.shape, np.int64),

@@ -15,6 +15,7 @@ from ._indenter import AbstractIndenter, Sphere, as_indenter
 from ._loading import Displacement, Force
 from ._material.base import AbstractMaterial, check_in_dtype
 from ._operator import HalfSpace
+from ._results import RESULTS
 from ._scene import (
     _check_finite_in_dtype,
     expected_contact_radius,
@@ -38,6 +39,8 @@ class NormalSolution(eqx.Module):
     - `normal_force`: total load `W = A sum(p)` [force].
     - `displacement`: `(nx, ny)` normal surface displacement `u_z` [length].
     - `iterations`, `residual`, `converged`: solver statistics (see `jc.PolonskyKeer`).
+    - `result`: how the solve ended, a `jc.RESULTS` (`successful`, or
+      `max_steps_reached` with its message), as `jc.Solution.result` for one step.
     - `applications`: number of operator applications (padded FFT convolutions) used;
       the preconditioner's transforms (one unpadded pair per iteration, a quarter of
       the size) are not counted.
@@ -55,6 +58,7 @@ class NormalSolution(eqx.Module):
     residual: Float[Array, ""]
     converged: Bool[Array, ""]
     applications: Int[Array, ""]
+    result: RESULTS
 
     @property
     def edge_contact(self) -> Bool[Array, ""]:
@@ -75,7 +79,8 @@ class NormalSolution(eqx.Module):
         **Returns:** a Dataset with dimensions `x`, `y` (cell centres [length]); the
         fields `pressure`, `gap`, `contact`, `displacement` on `(x, y)` and the
         scalars `approach`, `normal_force`, `iterations`, `residual`, `converged`,
-        `applications`, `edge_contact`, each with `units` and `long_name`.
+        `applications`, `edge_contact` and `result` (the `jc.RESULTS` code, its
+        names in `flag_meanings`), each with `units` and `long_name`.
         """
         from ._dataset import normal_dataset
 
@@ -203,6 +208,8 @@ def _solve(operator, h, compliance, poisson, target, load_control, solver, p0=No
         residual=state.residual,
         converged=state.converged,
         applications=state.applications,
+        result=RESULTS.where(state.converged, RESULTS.successful,
+                             RESULTS.max_steps_reached),
     )
 
 
@@ -342,19 +349,17 @@ def solve_normal(
     return _raise_on_failure(sol, solver) if throw else sol
 
 
-_NOT_CONVERGED = ("jc.solve_normal did not converge: the contact residual stayed above "
-                  "the tolerance for max_steps iterations")
-
-
 def _raise_on_failure(sol: NormalSolution, solver: PolonskyKeer) -> NormalSolution:
-    """`sol`, or a `ValueError` if it did not converge: at once for a concrete
-    solution, at run time (`eqx.error_if`) under a transformation."""
+    """`sol`, or the message of its `result` (`jc.RESULTS`) if it did not converge, as
+    `jc.solve` does: at once for a concrete solution, at run time (`error_if`) under
+    a transformation."""
+    failed = sol.result != RESULTS.successful
     if _validate.is_traced(sol):
-        return eqx.error_if(sol, ~sol.converged, _NOT_CONVERGED)
-    if not bool(sol.converged):
+        return sol.result.error_if(sol, failed)
+    if bool(failed):
         raise ValueError(
-            f"{_NOT_CONVERGED} (residual {float(sol.residual):.3g} after "
-            f"{int(sol.iterations)} of max_steps={solver.max_steps}, rtol="
-            f"{solver.tolerance(sol.pressure.dtype):.3g}); "
+            f"{RESULTS[sol.result]}\njc.solve_normal did not converge: residual "
+            f"{float(sol.residual):.3g} after {int(sol.iterations)} of max_steps="
+            f"{solver.max_steps}, rtol={solver.tolerance(sol.pressure.dtype):.3g}; "
             "jc.solve_normal(..., throw=False) returns the flags instead")
     return sol

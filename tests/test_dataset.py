@@ -159,9 +159,14 @@ def test_normal_solution_round_trip(tmp_path):
     back = _round_trip(ds, tmp_path / "normal.nc")
     _check_labels(back)
     for name in _field_names(sol):
+        if name == "result":
+            continue
         want = np.asarray(getattr(sol, name))
         assert back[name].dtype == want.dtype, name
         np.testing.assert_array_equal(back[name].values, want, err_msg=name)
+    # jc.RESULTS as its integer code, the flags named as for jc.Solution
+    assert int(back["result"]) == int(np.asarray(sol.result._value)) == 0
+    assert back["result"].attrs["flag_meanings"].split()[0] == "successful"
     assert back["pressure"].dims == ("x", "y") and back["approach"].dims == ()
     assert json.loads(back.attrs["material"])["shear_modulus"] == 1e6
     # Load balance through the file: sum(p) dx dy = W (solver rtol 1e-8).

@@ -323,8 +323,9 @@ def test_unpadded_preconditioner_raised_to_the_continuum(width):
 
 def test_a_solve_that_does_not_converge_raises_unless_throw_is_false():
     """As `jc.solve`: a normal solve that stops at `max_steps` above its tolerance
-    raises (naming the residual and the way out), at once for concrete inputs and at
-    run time under `jit`; `throw=False` returns it flagged. (A displacement-controlled
+    raises its `jc.RESULTS` message (and, concrete, the residual and the way out), at
+    once for concrete inputs and at run time under `jit`; `throw=False` returns it
+    flagged (`result`: `max_steps_reached`). (A displacement-controlled
     Hertz solve from p = 0 needs more than one iteration to reach rtol 1e-12.)"""
     stuck = jc.PolonskyKeer(rtol=1e-12, max_steps=1)
     grid = jc.Grid((32, 32), 4 * A_HZ)
@@ -336,17 +337,20 @@ def test_a_solve_that_does_not_converge_raises_unless_throw_is_false():
                           throw=False)
     assert not bool(sol.converged) and int(sol.iterations) == 1
     assert float(sol.residual) > 1e-12
+    assert sol.result == jc.RESULTS.max_steps_reached
 
     @jax.jit
     def traced(d):
         return jc.solve_normal(grid, jc.Sphere(R), material, approach=d,
                                solver=stuck).approach
 
-    with pytest.raises(Exception, match="did not converge"):
-        jax.block_until_ready(traced(delta))
+    with pytest.raises(Exception, match="maximum number of solver steps"):
+        jax.block_until_ready(traced(delta))  # jc.RESULTS' message, as jc.solve's
     converges = jax.jit(lambda d: jc.solve_normal(
         grid, jc.Sphere(R), material, approach=d).approach)
     assert abs(float(converges(delta)) - delta) == 0.0  # the approach is prescribed
+    ok = jc.solve_normal(grid, jc.Sphere(R), material, approach=delta)
+    assert ok.result == jc.RESULTS.successful
     with pytest.raises(TypeError, match="throw must be a bool"):
         jc.solve_normal(grid, jc.Sphere(R), material, approach=delta, throw="no")
 
