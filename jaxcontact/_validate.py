@@ -62,6 +62,16 @@ def is_traced(x) -> bool:
                for leaf in jax.tree_util.tree_leaves(x))
 
 
+def check_int(name: str, value, minimum: int) -> int:
+    """`value` as an `int`, or a `TypeError` (not an integer; booleans refused) or a
+    `ValueError` (below `minimum`) naming `name` and the value."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"{name} must be an integer, got {value!r}")
+    if value < minimum:
+        raise ValueError(f"{name} must be >= {minimum}, got {value!r}")
+    return int(value)
+
+
 def as_float_array(name: str, value, dtype=None) -> jax.Array:
     """Convert `value` to a floating JAX array, rejecting complex and non-numeric
     input."""

@@ -47,7 +47,7 @@ from ._material.maxwell import Maxwell
 from ._material.prony import Prony
 from ._material.zener import Zener
 from ._scene import Scene
-from ._validate import EdgeContactWarning
+from ._validate import EdgeContactWarning, check_int
 
 
 # ---- The paper's parameters, converted to true shear moduli (SI) ---------------------
@@ -105,14 +105,6 @@ DELTA_Z = 34.358e-6  # m
 # ---- Helpers -------------------------------------------------------------------------
 
 
-def _check_int(name, value, minimum):
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise TypeError(f"{name} must be an integer, got {value!r}")
-    if value < minimum:
-        raise ValueError(f"{name} must be >= {minimum}, got {value!r}")
-    return int(value)
-
-
 def _check_positive(name, value):
     if isinstance(value, bool) or not isinstance(value, (int, float, np.number)):
         raise TypeError(f"{name} must be a real number, got {value!r}")
@@ -128,7 +120,7 @@ def _check_choice(name, value, choices):
 
 
 def _steps(steps, default):
-    return default if steps is None else _check_int("steps", steps, 2)
+    return default if steps is None else check_int("steps", steps, 2)
 
 
 def _ratio(ratio):
@@ -240,8 +232,8 @@ def hertz(n: int = 256, steps: int = 1, *, dtype=None) -> Scene:
     points on t in [0, 1] s; the grid covers 4 a x 4 a with a = 588.7 um the Hertz
     contact radius. Not a figure of the paper: the elastic check of Table 2's a0, p0.
     """
-    n = _check_int("n", n, 2)
-    steps = _check_int("steps", steps, 1)
+    n = check_int("n", n, 2)
+    steps = check_int("steps", steps, 1)
     t2 = TABLE2
     a = float(table2_hertz().contact_radius)
     times = _times(1.0, steps) if steps > 1 else np.zeros(1)
@@ -268,7 +260,7 @@ def maxwell(
 
     - `duration`: T in units of tau (> 0).
     """
-    n = _check_int("n", n, 2)
+    n = check_int("n", n, 2)
     duration = _check_positive("duration", duration)
     steps = _steps(steps, int(round(50 * duration)) + 1)
     t1 = TABLE1
@@ -293,7 +285,7 @@ def pmma_triangle(n: int = 256, steps: int | None = None, *, dtype=None) -> Scen
     R = 3.5 mm; 1280 um x 1280 um, 256 x 256 cells; T = 20 s in 41 time points. No
     coupling (frictionless).
     """
-    n = _check_int("n", n, 2)
+    n = check_int("n", n, 2)
     steps = _steps(steps, 41)
     times = _times(20.0, steps)
     load = 10 * times - 20 * (times - 10) * (times > 10)
@@ -328,7 +320,7 @@ def zener(
     - `ratio`: mu_inf / mu_0 (>= 1).
     - `duration`: T in units of tau (> 0).
     """
-    n = _check_int("n", n, 2)
+    n = check_int("n", n, 2)
     duration = _check_positive("duration", duration)
     steps = _steps(steps, int(round(20 * duration)) + 1)
     return _table2_scene(n, steps, duration, ratio, Force(TABLE2["force"]), dtype=dtype)
@@ -345,7 +337,7 @@ def weichert(
     R = 3.5 mm, 1280 um x 1280 um, 256 x 256 cells.
     """
     _check_choice("material", material, ("pmma", "fictitious"))
-    n = _check_int("n", n, 2)
+    n = check_int("n", n, 2)
     steps = _steps(steps, 61 if material == "pmma" else 121)
     mat = pmma_material() if material == "pmma" else fictitious_material()
     scene = Scene(
@@ -374,7 +366,7 @@ def coupled_normal(
     3 or 10, Coulomb friction 0.30, no tangential input, full coupling; T = 2 tau in 81
     time points.
     """
-    n = _check_int("n", n, 2)
+    n = check_int("n", n, 2)
     duration = _check_positive("duration", duration)
     steps = _steps(steps, 81)
     return _table2_scene(
@@ -406,7 +398,7 @@ def lc(
     reaches the load through a displacement-controlled loop; jaxcontact controls the
     load directly.)
     """
-    n = _check_int("n", n, 2)
+    n = check_int("n", n, 2)
     duration = _check_positive("duration", duration)
     steps = _steps(steps, 81)
     fx = 0.5 * FRICTION * TABLE2["force"]
@@ -441,7 +433,7 @@ def dc(
     Paper: Table 2 (W = 0.15 N from t = 0), friction 0.30, full coupling, delta_x =
     6.1987 (um) from t = 0; T = 2 tau in 81 time points.
     """
-    n = _check_int("n", n, 2)
+    n = check_int("n", n, 2)
     duration = _check_positive("duration", duration)
     steps = _steps(steps, 81)
     return _table2_scene(
@@ -474,7 +466,7 @@ def relaxation(
     Paper: Table 2 material with mu_inf / mu_0 = 4, friction 0.30, full coupling, both
     displacements held from t = 0; T = 2 tau in 81 time points.
     """
-    n = _check_int("n", n, 2)
+    n = check_int("n", n, 2)
     duration = _check_positive("duration", duration)
     steps = _steps(steps, 81)
     return _table2_scene(
@@ -519,7 +511,7 @@ def sliding(
     - `coupling`: `"x"` or `"full"`. `normal`: `"displacement"` or `"force"`.
     - `duration`: T in units of tau (> 0).
     """
-    n = _check_int("n", n, 2)
+    n = check_int("n", n, 2)
     steps = _steps(steps, 81)
     rate = _check_positive("rate", rate)
     duration = _check_positive("duration", duration)
@@ -801,7 +793,7 @@ def from_spec(
     if not (isinstance(shape, list) and len(shape) == 2):
         raise ValueError(f"[grid] shape must be [nx, ny], got {shape!r}")
     if n is not None:
-        shape = (_check_int("n", n, 2),) * 2
+        shape = (check_int("n", n, 2),) * 2
     grid = Grid(shape, grid_t["size"], periodic=grid_t.get("periodic", False))
 
     indenter = _indenter(_table(spec, "indenter"), grid, base, n)
@@ -829,7 +821,7 @@ def from_spec(
         times = _floats("[time] times", time_t["times"])
     else:
         _keys("time", time_t, ("end", "steps"))
-        nt = _check_int("steps", time_t["steps"] if steps is None else steps, 1)
+        nt = check_int("steps", time_t["steps"] if steps is None else steps, 1)
         end = _check_positive("[time] end", time_t["end"])
         times = _times(end, nt) if nt > 1 else np.zeros(1)
 

@@ -21,6 +21,7 @@ from .._indenter import Sphere
 from .._material.prony import Prony
 from .._scene import Scene
 from .._solve import _warn_unstable_steps
+from .._validate import check_int
 from .certificate import (
     _GN_TOL,
     _at_boundary,
@@ -35,7 +36,7 @@ from .discretisation import _discretisation
 from .lbfgs import _adam_lbfgs
 from .lm import _have_optimistix, _LMRun
 from .model import _Evaluator, _scene_model
-from .options import FitOptions, _check_int, _with_legacy
+from .options import FitOptions, _with_legacy
 from .parametrisation import (
     _bound_factors,
     _check_bounds,
@@ -189,7 +190,7 @@ def _check_call(data, scene_template, n_terms, options, noise_std) -> int:
         raise TypeError(f"data must be a jc.IndentationData, got {data!r}")
     if not isinstance(scene_template, Scene):
         raise TypeError(f"scene_template must be a jc.Scene, got {scene_template!r}")
-    n = _check_int("n_terms", n_terms, 1)
+    n = check_int("n_terms", n_terms, 1)
     if options.optimiser == "lm" and not _have_optimistix():
         raise ImportError(
             'optimiser="lm" needs optimistix: pip install "jaxcontact[fit]"')

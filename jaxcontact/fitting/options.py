@@ -9,16 +9,10 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from .._validate import check_int
+
 
 OPTIMISERS = ("auto", "lm", "lbfgs")
-
-
-def _check_int(name, value, minimum):
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise TypeError(f"{name} must be an integer, got {value!r}")
-    if value < minimum:
-        raise ValueError(f"{name} must be >= {minimum}, got {value!r}")
-    return int(value)
 
 
 def _check_bool(name, value):
@@ -95,9 +89,9 @@ class FitOptions:
             raise ValueError(
                 f"optimiser must be 'auto', 'lm' or 'lbfgs', got {optimiser!r}")
         put("optimiser", optimiser)
-        put("adam_steps", _check_int("adam_steps", self.adam_steps, 0))
-        put("lbfgs_steps", _check_int("lbfgs_steps", self.lbfgs_steps, 0))
-        put("lm_steps", _check_int("lm_steps", self.lm_steps, 1))
+        put("adam_steps", check_int("adam_steps", self.adam_steps, 0))
+        put("lbfgs_steps", check_int("lbfgs_steps", self.lbfgs_steps, 0))
+        put("lm_steps", check_int("lm_steps", self.lm_steps, 1))
         rate = self.learning_rate
         if rate is not None and not (isinstance(rate, (int, float))
                                      and not isinstance(rate, bool) and 0 < rate < 10):
