@@ -203,10 +203,11 @@ def fit_afm_curve(curve, settings: AFMFitSettings, *, template=None) -> AFMFit:
                          if not failed else f"no arm count could be fitted ({reasons})")
     best = _choose(fits)
     fit = fits[best][0]
-    disc = problem.discretisation(fit) if settings.check_grid else None
+    bias = problem.grid_bias(fit) if settings.check_grid else None
+    disc = None if bias is None else float(np.sqrt(np.mean(bias**2)))
     _, raw_res, raw_seg = raw_residual(fit.material, fit.kind, curve, problem.template)
     hertz = apparent_hertz(curve, settings.radius, settings.poisson)
-    uncertainty = (analysis_uncertainty(problem, fit, curve, disc, hertz["E_Pa"])
+    uncertainty = (analysis_uncertainty(problem, fit, curve, bias, hertz["E_Pa"])
                    if settings.analysis_uncertainty else None)
     report = {
         "file": curve.path, "mode": curve.mode, "fitted": fit.kind,
@@ -306,10 +307,6 @@ class _Problem:
         return jc.fit_prony(data, self.template, arms, weights=weights, init=init,
                             bounds=bounds,
                             options=jc.FitOptions(lm_steps=self.settings.steps))
-
-    def discretisation(self, fit):
-        """RMS change [data units] of the fitted curve on a grid twice as fine."""
-        return float(np.sqrt(np.mean(self.grid_bias(fit) ** 2)))
 
     def grid_bias(self, fit):
         """`(nt,)` the fitted model's curve on this grid minus on a grid twice as

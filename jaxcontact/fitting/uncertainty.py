@@ -79,9 +79,10 @@ def contact_shift(curve, radius, poisson, e_apparent):
                    "noise_depth_m": depth_sigma if math.isfinite(depth_sigma) else None}
 
 
-def analysis_uncertainty(problem, fit, curve, disc, e_apparent):
+def analysis_uncertainty(problem, fit, curve, bias, e_apparent):
     """The refits of `fit` (a `jc.PronyFit` of `problem`, a `fitting.afm._Problem` of
-    `curve`) for the contact point and the grid; returns an `AnalysisUncertainty`."""
+    `curve`) for the contact point and, given its grid bias `bias` (`(nt,)`,
+    `problem.grid_bias(fit)`, or None), the grid; returns an `AnalysisUncertainty`."""
     settings = problem.settings
     arms = int(np.asarray(fit.material.g).shape[0])
     refits, details, flags = {}, {}, []
@@ -112,8 +113,7 @@ def analysis_uncertainty(problem, fit, curve, disc, e_apparent):
         refit = moved_problem.fit(arms, init=fit.material)
         _note(refit, f"contact at sample {index}", flags)
         refits["contact"].append(refit.material)
-    if disc is not None:
-        bias = problem.grid_bias(fit)
+    if bias is not None:  # `(nt,)` problem.grid_bias(fit), computed by the caller
         target = ({"depth": problem.depth - bias} if fit.kind == "depth"
                   else {"force": problem.force - bias})
         refit = problem.fit(arms, init=fit.material, data=problem.data(**target))
