@@ -72,6 +72,30 @@ def padded_shape(shape) -> tuple[int, int]:
     return tuple(length(int(n)) for n in shape)
 
 
+def dc_forward(field: Float[Array, "... nx ny"], fft_shape, transposed: bool = False):
+    """The DC-FFT spectrum of a real field zero-padded to `fft_shape = (Lx, Ly)`
+    (`padded_shape`): `(..., Lx, Ly // 2 + 1)`, or `(..., Ly // 2 + 1, Lx)` if
+    `transposed` (the column transforms then run along the contiguous axis). Pruned:
+    the row transforms run on the `nx` non-zero rows only."""
+    lx, ly = fft_shape
+    spec = jnp.fft.rfft(field, n=ly, axis=-1)
+    if transposed:
+        return jnp.fft.fft(jnp.swapaxes(spec, -1, -2), n=lx, axis=-1)
+    return jnp.fft.fft(spec, n=lx, axis=-2)
+
+
+def dc_inverse(spec, shape, fft_shape, transposed: bool = False):
+    """Inverse of `dc_forward`, cropped to the grid's `shape = (nx, ny)`: the column
+    transforms run on the `nx` kept rows only."""
+    nx, ny = shape
+    ly = fft_shape[1]
+    if transposed:
+        field = jnp.swapaxes(jnp.fft.ifft(spec, axis=-1)[..., :nx], -1, -2)
+    else:
+        field = jnp.fft.ifft(spec, axis=-2)[..., :nx, :]
+    return jnp.fft.irfft(field, n=ly, axis=-1)[..., :ny]
+
+
 def _wraparound_offsets(n: int, length: int, d, xp):
     """Offsets `i * d` for `i = 0..n-1, (unused), -(n-1)..-1`, `length` (`>= 2n - 1`)
     entries, and the mask of the used ones."""
@@ -242,22 +266,20 @@ class HalfSpace(eqx.Module):
         `padded_shape`."""
         return self.grid.shape if self.grid.periodic else padded_shape(self.grid.shape)
 
-    def forward(self, field: Float[Array, "... nx ny"]):
+    def forward(self, field: Float[Array, "... nx ny"], transposed: bool = False):
         """Spectrum `(..., Lx, Ly // 2 + 1)` of a real field (padded and pruned for
-        non-periodic grids)."""
+        non-periodic grids, `dc_forward`; `transposed`: in the `(ky, kx)` layout).
+        Periodic grids: `rfft2`, one layout."""
         if self.grid.periodic:
             return jnp.fft.rfft2(field)
-        lx, ly = self.fft_shape
-        spec = jnp.fft.rfft(field, n=ly, axis=-1)
-        return jnp.fft.fft(spec, n=lx, axis=-2)
+        return dc_forward(field, self.fft_shape, transposed)
 
-    def inverse(self, spec) -> Float[Array, "... nx ny"]:
+    def inverse(self, spec, transposed: bool = False) -> Float[Array, "... nx ny"]:
         """Inverse of `forward`, cropped to the grid."""
         nx, ny = self.grid.shape
         if self.grid.periodic:
             return jnp.fft.irfft2(spec, s=(nx, ny))
-        field = jnp.fft.ifft(spec, axis=-2)[..., :nx, :]
-        return jnp.fft.irfft(field, n=self.fft_shape[1], axis=-1)[..., :ny]
+        return dc_inverse(spec, self.grid.shape, self.fft_shape, transposed)
 
     def convolve(self, field: Float[Array, "nx ny"], spectrum) -> Float[Array, "nx ny"]:
         """`inverse(forward(field) * spectrum)` for one field, with `spectrum` in

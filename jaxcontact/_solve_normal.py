@@ -24,7 +24,7 @@ from ._scene import (
     warn_if_too_large,
 )
 from ._solution import edge_ring
-from ._solver.base import StepGuess, StepProblem
+from ._solver.base import StepGuess, StepProblem, run
 from ._solver.normal import PolonskyKeer, hertzian_guess
 
 
@@ -161,17 +161,18 @@ def _nested_start(coarse_ops, h, compliance, poisson, target, load_control, solv
         mixed_precision=solver.mixed_precision)
     p = None
     for level, gap in zip(coarse_ops, gaps[:0:-1]):  # coarsest first
-        state = _solve_state(level, gap, compliance, poisson, target, load_control,
-                             coarse, p)
+        state, _ = _solve_state(level, gap, compliance, poisson, target,
+                                load_control, coarse, p)
         p = _repeat(state.pressure)
     return p
 
 
 def _solve_state(operator, h, compliance, poisson, target, load_control, solver,
                  p0=None, coarse_ops=()):
-    """The solve's `NormalState`; `p0`: the starting pressure, default a nested start
-    over the coarser grids of `coarse_ops` if any, else the Hertzian guess under load
-    control and zero (the local interference) under displacement control."""
+    """The solve's `(NormalState, RESULTS)`, through the solver driver; `p0`: the
+    starting pressure, default a nested start over the coarser grids of `coarse_ops`
+    if any, else the Hertzian guess under load control and zero (the local
+    interference) under displacement control."""
     grid = operator.grid
     nx, ny = grid.shape
     dtype = h.dtype
@@ -187,7 +188,10 @@ def _solve_state(operator, h, compliance, poisson, target, load_control, solver,
         if load_control:
             effective_modulus = 2 / (compliance * (1 - poisson))
             p0 = hertzian_guess(h, target, effective_modulus, grid.cell_area)
-    return solver.solve_state(problem, StepGuess(p0, jnp.zeros((0, nx, ny), dtype)))
+    setup = solver.setup(problem)
+    out = run(solver, problem, StepGuess(p0, jnp.zeros((0, nx, ny), dtype)),
+              setup=setup)
+    return solver.normal_state(setup, out.state), out.result
 
 
 @eqx.filter_jit
@@ -195,8 +199,8 @@ def _solve(operator, h, compliance, poisson, target, load_control, solver, p0=No
            coarse_ops=()):
     """The jitted solve (`_solve_state`) as a `NormalSolution`."""
     grid = operator.grid
-    state = _solve_state(operator, h, compliance, poisson, target, load_control, solver,
-                         p0, coarse_ops)
+    state, result = _solve_state(operator, h, compliance, poisson, target,
+                                 load_control, solver, p0, coarse_ops)
     return NormalSolution(
         pressure=state.pressure,
         gap=state.gap,
@@ -208,8 +212,7 @@ def _solve(operator, h, compliance, poisson, target, load_control, solver, p0=No
         residual=state.residual,
         converged=state.converged,
         applications=state.applications,
-        result=RESULTS.where(state.converged, RESULTS.successful,
-                             RESULTS.max_steps_reached),
+        result=result,
     )
 
 

@@ -37,8 +37,9 @@ Hertz pressure on a 128 x 128 grid of side 3a (about 85 cells across the contact
 at the surface inside 0.9 a (9e-3 p0 at 64 x 64), where the cell-wise constant
 traction matters most.
 
-Convolution: exactly the non-periodic DC-FFT of `_operator.py` (zero padding to
-`2nx x 2ny`, kernel in wrap-around order); kernels are built in float64 NumPy when the
+Convolution: the non-periodic DC-FFT of `_operator.py`, its layout and transforms
+(`padded_shape`, `dc_forward`, `dc_inverse`: zero padding, kernel in wrap-around
+order); kernels are built in float64 NumPy when the
 grid, depths and Poisson's ratio are concrete and with `jax.numpy` when traced.
 
 Sign conventions (DESIGN.md section 1): z points into the body; the pressure `p >= 0`
@@ -54,6 +55,7 @@ from jaxtyping import Array, Float
 
 from . import _validate
 from ._grid import Grid
+from ._operator import dc_forward, dc_inverse, padded_shape
 
 
 COMPONENTS = ("sxx", "syy", "szz", "sxy", "sxz", "syz")
@@ -284,31 +286,22 @@ class Stress(eqx.Module):
 # ----------------------------------------------------------------------------------
 
 
-def _forward(field, nx, ny):
-    """Spectrum of the zero-padded field (as `HalfSpace.forward`)."""
-    spec = jnp.fft.rfft(field, n=2 * ny, axis=-1)
-    return jnp.fft.fft(spec, n=2 * nx, axis=-2)
-
-
-def _inverse(spec, nx, ny):
-    field = jnp.fft.ifft(spec, axis=-2)[..., :nx, :]
-    return jnp.fft.irfft(field, n=2 * ny, axis=-1)[..., :ny]
-
-
 def _corner_differences(f, xp):
     """`f[s+1, t+1] - f[s, t+1] - f[s+1, t] + f[s, t]` over the last two axes."""
     return f[..., 1:, 1:] - f[..., :-1, 1:] - f[..., 1:, :-1] + f[..., :-1, :-1]
 
 
 def _kernel_spectra(grid: Grid, z, poisson, loads, xp):
-    """rfft2 of the wrap-around stress coefficients at depth `z`:
-    `{load: (6, 2nx, ny+1)}`.
+    """The stress coefficients at depth `z` in `dc_forward`'s layout: `{load: (6, Lx,
+    Ly // 2 + 1)}` (`(Lx, Ly) = padded_shape`).
 
     The corner functions are evaluated once on the `(2nx+1) x (2ny+1)` cell corners of
     the offsets `-nx .. nx-1` (each corner is shared by four cells), differenced into
-    cell coefficients, and rolled into wrap-around order (offset `-n` set to zero).
+    cell coefficients and laid out in wrap-around order (offsets `-(n-1) .. n-1`: the
+    linear convolution of `n` cells uses no other).
     """
     nx, ny = grid.shape
+    lx, ly = padded_shape(grid.shape)
     dx, dy = grid.spacing
     if xp is np:
         dx, dy, z, poisson = float(dx), float(dy), float(z), float(poisson)
@@ -329,29 +322,27 @@ def _kernel_spectra(grid: Grid, z, poisson, loads, xp):
     for load in loads:
         f = xp.stack([corners[load][c] for c in COMPONENTS]) / (4 * np.pi)
         coeff = _corner_differences(f, xp)  # offsets -n .. n-1, sorted
-        if xp is jnp:
-            coeff = coeff.at[:, 0, :].set(0.0).at[:, :, 0].set(0.0)
-        else:
-            coeff = _zero_first(coeff)
-        coeff = xp.fft.ifftshift(coeff, axes=(-2, -1))  # wrap-around order
+        coeff = _wraparound(_wraparound(coeff, nx, lx, -2, xp), ny, ly, -1, xp)
         out[load] = jnp.asarray(xp.fft.rfft2(coeff), dtype=cdtype)
     return out
 
 
-def _zero_first(a):
-    a = np.array(a)
-    a[:, 0, :] = 0.0
-    a[:, :, 0] = 0.0
-    return a
+def _wraparound(coeff, n, length, axis, xp):
+    """Sorted offsets `-n .. n-1` along `axis` to wrap-around order on `length >=
+    2n - 1` entries: `0 .. n-1`, zeros, `-(n-1) .. -1`."""
+    coeff = xp.moveaxis(coeff, axis, -1)
+    zeros = xp.zeros(coeff.shape[:-1] + (length - 2 * n + 1,), coeff.dtype)
+    out = xp.concatenate([coeff[..., n:], zeros, coeff[..., 1:n]], axis=-1)
+    return xp.moveaxis(out, -1, axis)
 
 
 def _tractions_hat(pressure, shear):
     """Padded spectra of the tractions in use: `{"p": ..., ["qx": ..., "qy": ...]}`."""
-    nx, ny = pressure.shape
-    out = {"p": _forward(pressure, nx, ny)}
+    fft_shape = padded_shape(pressure.shape)
+    out = {"p": dc_forward(pressure, fft_shape)}
     if shear is not None:
-        out["qx"] = _forward(shear[0], nx, ny)
-        out["qy"] = _forward(shear[1], nx, ny)
+        out["qx"] = dc_forward(shear[0], fft_shape)
+        out["qy"] = dc_forward(shear[1], fft_shape)
     return out
 
 
@@ -360,7 +351,7 @@ def _stress_from_spectra(spectra, traction_hat, nx, ny):
     total = 0.0
     for load, t_hat in traction_hat.items():
         total = total + spectra[load] * t_hat[None]
-    return _inverse(total, nx, ny)
+    return dc_inverse(total, (nx, ny), padded_shape((nx, ny)))
 
 
 @jax.jit
@@ -408,8 +399,8 @@ def subsurface_stress(
     evaluated at the cell-centre positions `(grid.x, grid.y)` at each depth.
 
     Cost per depth: one kernel build (`2nx x 2ny` closed forms, 3 x 6 rfft2) and 6
-    inverse FFTs of the padded grid. Several depths are processed one after another
-    (`lax.map` when traced), so memory does not grow with `nz`.
+    inverse FFTs of the padded grid (`padded_shape`). Several depths are processed
+    one after another (`lax.map` when traced), so memory does not grow with `nz`.
 
     **Raises:** `ValueError` for a periodic grid, shape mismatches, a negative or
     non-finite depth, or a Poisson's ratio outside `(-1, 0.5]`; `TypeError` for

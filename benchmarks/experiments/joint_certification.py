@@ -90,9 +90,10 @@ def run(scene, iterations):
         print(f"        {int(state.it):3d} {bool(state.certified)!s:>9}  "
               f"{float(state.ev.residual):.3e}        {float(state.ev.gate):.3e} "
               f"{float(state.scales[1]):.3e}  {float(exact(state.x)[1]):.3e}")
-        if bool(solver.terminate(second, k, state)):
+        done, result = solver.terminate(second, k, state)
+        if bool(done):
             break
-    out = solver.postprocess(second, k, state)
+    out = solver.postprocess(second, k, state, result)
     print(f"step 2: {int(out.iterations)} iterations, converged {bool(out.converged)}, "
           f"{int(jnp.sum(out.pressure > 0))} contact cells")
 

@@ -307,7 +307,10 @@ class SemismoothNewton(AbstractStepSolver):
                             failed=jnp.array(False))
 
     def terminate(self, problem, k, s):
-        return (s.residual <= k.rtol) | s.failed
+        failure = RESULTS.where(s.failed, RESULTS.stalled, RESULTS.max_steps_reached)
+        converged = s.residual <= k.rtol
+        return converged | s.failed, RESULTS.where(converged, RESULTS.successful,
+                                                   failure)
 
     def step(self, problem, k, s):
         x = s.x
@@ -363,12 +366,13 @@ class SemismoothNewton(AbstractStepSolver):
             stuck=jnp.where(accepted, 0, s.stuck + 1), weights=weights,
             failed=(s.stuck >= 2) & ~accepted | ~jnp.isfinite(fn))
 
-    def postprocess(self, problem, k, s):
+    def postprocess(self, problem, k, s, result):
         ev = s.ev
         p = s.p_cert
         contact = p > 0
         converged = s.residual <= k.rtol
-        failure = RESULTS.where(s.failed, RESULTS.stalled, RESULTS.max_steps_reached)
+        failure = RESULTS.where(result == RESULTS.successful,
+                                RESULTS.max_steps_reached, result)
         result = step_outcome(problem, p, converged, k.rtol, failure)
         return make_result(
             pressure=p, shear=s.q_cert, approach=ev.dz, delta_t=ev.dt,

@@ -9,13 +9,18 @@ and returns one `StepResult`, through the same four methods, as optimistix's
   the effective gap); computed once, closed over by the loop body;
 - `init(problem, setup, guess)`: the first iterate, from a `StepGuess`;
 - `step(problem, setup, state)`: one iteration;
-- `terminate(problem, setup, state)`: whether to stop (converged, or given up);
-- `postprocess(problem, setup, state)`: the `StepResult`.
+- `terminate(problem, setup, state)`: `(done, result)`: whether to stop, and why
+  (`successful`, or the failure the solver gave up with, e.g. `stalled`);
+- `postprocess(problem, setup, state, result)`: the output (a `StepResult`).
 
-`iterate` is the ONE driver: it owns the `while_loop`, counts the steps and bounds them
-by `solver.step_limit()`, and stamps the result with a `RESULTS` value. A solver never
-runs its own loop; a wrapper (`Fallback`, `LoadByDisplacement`) is a solver whose
-`step` calls another solver's `solve`.
+`run` is the ONE driver and the one way into a solver: it owns the `while_loop`,
+counts the steps, bounds them by `solver.step_limit()` and, when the bound stops a
+solver that had not terminated, hands `postprocess` `RESULTS.max_steps_reached`. A
+solver never runs its own loop; a wrapper (`Fallback`, `LoadByDisplacement`,
+`Rounds`) is a solver whose `init` or `step` runs other solvers through `run`. A
+sub-solver may solve its own kind of problem (`TangentialCG`: a
+`TangentialOperator`, at a known pressure) and return its own output; the driver is
+the same.
 
 All displacements in a step are `C K traction + history`, with `C` the step's
 compliance (`1/G` elastic, `J(0)` or an effective one in a viscoelastic step) and
@@ -23,14 +28,14 @@ compliance (`1/G` elastic, `J(0)` or an effective one in a viscoelastic step) an
 """
 
 import abc
-from typing import Any
+from typing import Any, NamedTuple
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
-from .._solution import RESULTS
+from .._results import RESULTS
 
 
 class StepProblem(eqx.Module):
@@ -200,12 +205,17 @@ class AbstractStepSolver(eqx.Module):
         """One iteration: the next state."""
 
     @abc.abstractmethod
-    def terminate(self, problem: StepProblem, setup, state) -> Bool[Array, ""]:
-        """`True` when the iteration should stop (converged or given up)."""
+    def terminate(self, problem: StepProblem, setup,
+                  state) -> tuple[Bool[Array, ""], RESULTS]:
+        """`(done, result)`: `done` when the iteration should stop, `result` why:
+        `successful`, or the failure the solver gave up with. The step bound is the
+        driver's (`step_limit`): a solver does not test it."""
 
     @abc.abstractmethod
-    def postprocess(self, problem: StepProblem, setup, state) -> StepResult:
-        """The step's result from the final state."""
+    def postprocess(self, problem: StepProblem, setup, state,
+                    result: RESULTS) -> StepResult:
+        """The output from the final state; `result`: the driver's verdict
+        (`terminate`'s, or `max_steps_reached` when the step bound stopped it)."""
 
     @abc.abstractmethod
     def step_limit(self) -> int:
@@ -224,54 +234,62 @@ class AbstractStepSolver(eqx.Module):
         return None
 
     def run_loop(self, problem: StepProblem, setup, state):
-        """The iteration from `state` to the final state: by default one `loop`."""
+        """`(final state, steps)`: the iteration from `state`, by default one `loop`
+        (a solver with phases runs one `loop` a phase, the count carried on)."""
         return loop(self, problem, setup, state)
 
     def solve(self, problem: StepProblem, guess: StepGuess) -> StepResult:
-        """Solve one step: `iterate(self, problem, guess)`."""
-        return iterate(self, problem, guess)
+        """Solve one step: `run(self, problem, guess).output`."""
+        return run(self, problem, guess).output
 
 
-def iterate(solver: AbstractStepSolver, problem: StepProblem,
-            guess: StepGuess) -> StepResult:
-    """THE driver loop: `init`, then `step` while not `terminate` and fewer than
-    `solver.step_limit()` steps, then `postprocess`.
+class Run(NamedTuple):
+    """What the driver returns: the solver's `output` (a `StepResult` for a step
+    solver), its final `state` (for tests and benchmarks that read a solver's own
+    statistics), the `steps` taken and the `result` handed to `postprocess`."""
+
+    output: Any
+    state: Any
+    steps: Int[Array, ""]
+    result: RESULTS
+
+
+def run(solver: AbstractStepSolver, problem, guess, *, setup=None) -> Run:
+    """THE driver: `setup` (unless given: the loop invariants already built, e.g. one
+    operator for several gaps), `init`, then `step` while not `terminate` and fewer
+    than `solver.step_limit()` steps, then `postprocess` with the result:
+    `terminate`'s, or `max_steps_reached` if the bound stopped the loop first.
 
     A `while_loop` rather than a `scan` or a `cond`: under `vmap` the batched loop runs
     its body only while some member needs it, and a wrapper whose `init` already
     converged (e.g. `Fallback`) costs nothing more.
     """
-    return run(solver, problem, guess)[0]
-
-
-def run(solver: AbstractStepSolver, problem: StepProblem, guess: StepGuess, *,
-        setup=None):
-    """`iterate`, also returning the solver's final state (for benchmarks and tests
-    that read a solver's own statistics); `setup`: the loop invariants if already
-    built."""
     why = solver.supports(problem)
     if why is not None:
         raise ValueError(f"{type(solver).__name__} cannot solve this step: {why}")
     if setup is None:
         setup = solver.setup(problem)
-    state = solver.run_loop(problem, setup, solver.init(problem, setup, guess))
-    return solver.postprocess(problem, setup, state), state
+    state, steps = solver.run_loop(problem, setup, solver.init(problem, setup, guess))
+    done, result = solver.terminate(problem, setup, state)
+    result = RESULTS.where(done, result, RESULTS.max_steps_reached)
+    return Run(solver.postprocess(problem, setup, state, result), state, steps, result)
 
 
-def loop(solver: AbstractStepSolver, problem, setup, state):
-    """The `while_loop` of the driver: `step` while not `terminate` and fewer than
-    `solver.step_limit()` steps; the final state."""
+def loop(solver: AbstractStepSolver, problem, setup, state, steps=0):
+    """The driver's `while_loop`: `step` while not `terminate` and fewer than
+    `solver.step_limit()` steps in all (`steps` already taken by an earlier phase);
+    `(final state, steps)`."""
     limit = solver.step_limit()
 
     def cond(carry):
         state, n = carry
-        return (~solver.terminate(problem, setup, state)) & (n < limit)
+        return (~solver.terminate(problem, setup, state)[0]) & (n < limit)
 
     def body(carry):
         state, n = carry
         return solver.step(problem, setup, state), n + 1
 
-    return jax.lax.while_loop(cond, body, (state, jnp.array(0)))[0]
+    return jax.lax.while_loop(cond, body, (state, jnp.asarray(steps, jnp.int32)))
 
 
 def step_outcome(problem: StepProblem, pressure, converged, rtol,

@@ -40,7 +40,7 @@ class Fallback(AbstractStepSolver):
         return _FallbackState(self.primary.solve(problem, guess), jnp.array(False))
 
     def terminate(self, problem, setup, state):
-        return state.result.converged | state.tried
+        return state.result.converged | state.tried, state.result.result
 
     def step(self, problem, setup, state):
         before = state.result
@@ -50,5 +50,5 @@ class Fallback(AbstractStepSolver):
             rounds=before.rounds + after.rounds,
             fallbacks=before.fallbacks + after.fallbacks + 1), jnp.array(True))
 
-    def postprocess(self, problem, setup, state):
+    def postprocess(self, problem, setup, state, result):
         return state.result

@@ -47,7 +47,7 @@ import jax
 import jax.numpy as jnp
 from jax.flatten_util import ravel_pytree
 
-from .._solution import RESULTS
+from .._results import RESULTS
 from .base import AbstractStepSolver, StepGuess, StepProblem, applied_load
 from .gmres import restarted_gmres
 from .normal import inverse_preconditioner

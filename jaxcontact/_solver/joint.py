@@ -58,7 +58,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
-from .._solution import RESULTS
+from .._results import RESULTS
 from .base import AbstractStepSolver, applied_load, make_result, run, step_outcome
 from .base import safe_div as _safe_div
 from .precondition import block_preconditioner
@@ -160,7 +160,6 @@ class _JointOperator:
         compliance, poisson = problem.compliance, problem.poisson
         self.nd, self.grid, self.dtype = nd, grid, dtype
         self.nx, self.ny = grid.shape
-        self.lx, self.ly = operator.fft_shape
         self.area = grid.cell_area
         self.rtol = solver.tolerance(dtype)
         self.load_n = problem.normal_force_control
@@ -271,19 +270,12 @@ class _JointOperator:
         return jnp.sum(jnp.stack([t11, t12, t22]), axis=(-2, -1))
 
     def forward(self, x):
-        """`operator.forward`, on non-periodic grids with the spectrum transposed to
-        `(ky, kx)` (the column transforms along the contiguous axis)."""
-        if self.periodic:
-            return self.operator.forward(x)
-        spec = jnp.fft.rfft(x, n=self.ly, axis=-1)
-        return jnp.fft.fft(jnp.swapaxes(spec, -1, -2), n=self.lx, axis=-1)
+        """`operator.forward`, on non-periodic grids in the `(ky, kx)` layout (the
+        column transforms along the contiguous axis)."""
+        return self.operator.forward(x, transposed=not self.periodic)
 
     def inverse(self, uh):
-        if self.periodic:
-            return self.operator.inverse(uh)
-        field = jnp.fft.ifft(uh, axis=-1)[..., :self.nx]
-        field = jnp.swapaxes(field, -1, -2)
-        return jnp.fft.irfft(field, n=self.ly, axis=-1)[..., :self.ny]
+        return self.operator.inverse(uh, transposed=not self.periodic)
 
     def apply(self, x):
         """Displacements `(u_z, u_t...)` of the traction `(p, q...)`: one
@@ -576,9 +568,13 @@ class JointPCG(AbstractStepSolver):
 
     def terminate(self, problem, k, s: _JointState):
         # Leave only from a certified state (bound mu p; exact displacements and
-        # scales when within the tolerance).
-        done = (s.ev.residual <= k.rtol) | self._exhausted(s.it, s.since)
-        return done & s.certified
+        # scales when within the tolerance). Exhaustion is the algorithm's own: it
+        # forces the bound update that certifies the last iterate.
+        converged = s.ev.residual <= k.rtol
+        done = (converged | self._exhausted(s.it, s.since)) & s.certified
+        failure = RESULTS.where(s.since >= self.stall, RESULTS.stalled,
+                                RESULTS.max_steps_reached)
+        return done, RESULTS.where(converged, RESULTS.successful, failure)
 
     def step(self, problem, k: _JointOperator, s: _JointState) -> _JointState:
         nd, fc, dtype = k.nd, k.fc, k.dtype
@@ -763,14 +759,14 @@ class JointPCG(AbstractStepSolver):
             want=want,
             steady=~jnp.any(release) | (ev_new.residual < self.fft_residual))
 
-    def postprocess(self, problem, k: _JointOperator, s: _JointState):
+    def postprocess(self, problem, k: _JointOperator, s: _JointState, result):
         x, ev = s.x, s.ev
         p = x[0]
         contact = p > 0
         # Only a certified iterate (bound mu p, exact displacements) is an answer.
         converged = (ev.residual <= k.rtol) & s.certified
-        failure = RESULTS.where(s.since >= self.stall, RESULTS.stalled,
-                                RESULTS.max_steps_reached)
+        failure = RESULTS.where(result == RESULTS.successful,
+                                RESULTS.max_steps_reached, result)
         result = step_outcome(problem, p, converged, k.rtol, failure)
         return make_result(
             pressure=p, shear=x[1:], approach=ev.dz, delta_t=ev.dt,
@@ -784,5 +780,6 @@ class JointPCG(AbstractStepSolver):
         equivalent coupled operator applications (a forward or inverse transform of all
         components counts 1/2; the preconditioner's unpadded transforms are not
         counted) and `counts` (periodic resyncs, bound updates). Benchmarks only."""
-        result, state = run(self, problem, guess)
-        return result, dict(applications=state.applications, counts=state.counts)
+        out = run(self, problem, guess)
+        return out.output, dict(applications=out.state.applications,
+                                counts=out.state.counts)

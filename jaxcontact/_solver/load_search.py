@@ -16,7 +16,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from .._solution import RESULTS
+from .._results import RESULTS
 from .base import AbstractStepSolver, StepGuess, StepResult
 
 
@@ -113,7 +113,7 @@ class LoadByDisplacement(AbstractStepSolver):
             rounds=r0.rounds, fallbacks=r0.fallbacks)
 
     def terminate(self, problem, setup, s: _SearchState):
-        return s.best_err <= self.tolerance(problem.dtype)
+        return s.best_err <= self.tolerance(problem.dtype), RESULTS.successful
 
     def step(self, problem, setup, s: _SearchState) -> _SearchState:
         a, fa, b, fb = s.a, s.fa, s.b, s.fb
@@ -149,11 +149,11 @@ class LoadByDisplacement(AbstractStepSolver):
             iterations=s.iterations + r.iterations, rounds=s.rounds + r.rounds,
             fallbacks=s.fallbacks + r.fallbacks)
 
-    def postprocess(self, problem, setup, s: _SearchState):
+    def postprocess(self, problem, setup, s: _SearchState, result):
         best = s.best
         converged = best.converged & (s.best_err <= self.tolerance(problem.dtype))
         # Not met: the best evaluation's own failure, or the evaluations ran out.
-        failure = RESULTS.where(best.converged, RESULTS.max_steps_reached, best.result)
+        failure = RESULTS.where(best.converged, result, best.result)
         return best.replace(
             iterations=s.iterations, rounds=s.rounds, fallbacks=s.fallbacks,
             residual=jnp.maximum(best.residual, s.best_raw), converged=converged,

@@ -54,7 +54,8 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
-from .base import AbstractStepSolver, StepGuess, loop, make_result
+from .._results import RESULTS
+from .base import AbstractStepSolver, StepGuess, StepProblem, loop, make_result, run
 from .base import safe_div as _safe_div
 from .precondition import continuum_symbols, padded_inverse, unpadded_inverse
 from .residual import gap_residual
@@ -313,16 +314,18 @@ class PolonskyKeer(AbstractStepSolver):
             applications=jnp.array(1), p_start=p0, inexact=jnp.array(False))
 
     def terminate(self, problem, k, s):
-        # The float32 phase ends where float64 takes over; both share `max_steps`.
+        # The float32 phase ends where float64 takes over.
         stop = max(k.rtol, LOW_PRECISION_ABOVE) if k.low else k.rtol
-        return (s.residual <= stop) | (s.it >= self.max_steps)
+        return s.residual <= stop, RESULTS.successful
 
     def run_loop(self, problem, k: NormalOperator, state):
         """The float32 phase (mixed precision), then the float64 one: two loops, so
-        that under `vmap` each applies the operator in one precision."""
+        that under `vmap` each applies the operator in one precision; both count
+        towards `max_steps`."""
+        steps = 0
         if k.apply_low is not None:
-            state = loop(self, problem, k.with_gap(k.h, low=True), state)
-        return loop(self, problem, k.with_gap(k.h, low=False), state)
+            state, steps = loop(self, problem, k.with_gap(k.h, low=True), state)
+        return loop(self, problem, k.with_gap(k.h, low=False), state, steps)
 
     def step(self, problem, k: NormalOperator, s: _NormalCGState) -> _NormalCGState:
         load_control, rtol = k.load_control, k.rtol
@@ -403,7 +406,7 @@ class PolonskyKeer(AbstractStepSolver):
             residual=residual, converged=residual <= k.rtol,
             applications=s.applications)
 
-    def postprocess(self, problem, k: NormalOperator, s: _NormalCGState):
+    def postprocess(self, problem, k: NormalOperator, s: _NormalCGState, result):
         st = self.normal_state(k, s)
         empty = jnp.zeros((0,) + st.pressure.shape, st.pressure.dtype)
         return make_result(
@@ -411,14 +414,7 @@ class PolonskyKeer(AbstractStepSolver):
             delta_t=jnp.zeros((0,), st.pressure.dtype), slip=empty,
             stick=(st.pressure > 0) & (problem.friction > 0), sliding=False,
             iterations=st.iterations, rounds=1, residual=st.residual,
-            converged=st.converged)
-
-    def solve_state(self, problem, guess, setup: NormalOperator | None = None):
-        """Solve and return the raw `NormalState` (with the gap and displacement), on
-        `setup` if given (a `NormalOperator`, e.g. one gap of a coupled round)."""
-        k = self.setup(problem) if setup is None else setup
-        state = self.run_loop(problem, k, self.init(problem, k, guess))
-        return self.normal_state(k, state)
+            converged=st.converged, result=result)
 
 
 def polonsky_keer(apply_fn, h, target, cell_area, *, load_control: bool, rtol: float,
@@ -434,5 +430,13 @@ def polonsky_keer(apply_fn, h, target, cell_area, *, load_control: bool, rtol: f
                        rtol=rtol, self_compliance=self_compliance,
                        precondition=precondition)
     p0 = jnp.zeros_like(h) if p0 is None else p0
+    nx, ny = h.shape
+    zero = jnp.zeros((), h.dtype)
+    # The step around the raw operator (its fields other than the gap and target are
+    # unused: `k` is the setup).
+    problem = StepProblem(
+        None, zero, zero, zero, h, jnp.zeros((3, nx, ny), h.dtype), k.target,
+        jnp.zeros((0,), h.dtype), jnp.zeros((0, nx, ny), h.dtype), 0, False,
+        load_control, ())
     guess = StepGuess(p0, jnp.zeros((0,) + h.shape, h.dtype))
-    return solver.normal_state(k, solver.run_loop(None, k, solver.init(None, k, guess)))
+    return solver.normal_state(k, run(solver, problem, guess, setup=k).state)

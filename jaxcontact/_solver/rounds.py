@@ -19,7 +19,15 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from .base import AbstractStepSolver, StepGuess, applied_load, make_result, step_outcome
+from .._results import RESULTS
+from .base import (
+    AbstractStepSolver,
+    StepGuess,
+    applied_load,
+    make_result,
+    run,
+    step_outcome,
+)
 from .normal import NormalOperator, PolonskyKeer
 from .precondition import shear_x_preconditioner
 from .tangential import TangentialState, gross_sliding
@@ -68,8 +76,9 @@ class _RoundsOperator:
     def solve_normal(self, h_eff, p_start):
         p_start = jnp.asarray(p_start, self.dtype)
         guess = StepGuess(p_start, jnp.zeros((0,) + p_start.shape, self.dtype))
-        return self.normal_solver.solve_state(
-            self.normal_problem, guess, setup=self.normal_setup.with_gap(h_eff))
+        setup = self.normal_setup.with_gap(h_eff)
+        state = run(self.normal_solver, self.normal_problem, guess, setup=setup).state
+        return self.normal_solver.normal_state(setup, state)
 
     def uz_from_shear(self, q):
         pr, op = self.problem, self.operator
@@ -191,15 +200,15 @@ class Rounds(AbstractStepSolver):
 
     def terminate(self, problem, k, state):
         if problem.nd == 0 or not problem.coupled:
-            return jnp.array(True)  # one round is exact
-        return state.done
+            return jnp.array(True), RESULTS.successful  # one round is exact
+        return state.done, RESULTS.successful
 
     def step(self, problem, k: _RoundsOperator, state):
         if problem.nd == 0:
             return state  # never run: `terminate` is True
         return k.round_(state.pressure, state.shear, state.iterations, state.rounds)
 
-    def postprocess(self, problem, k: _RoundsOperator, state):
+    def postprocess(self, problem, k: _RoundsOperator, state, result):
         normal, tang = state.normal, state.tangential
         p = state.pressure
         if problem.nd == 0:
@@ -208,7 +217,9 @@ class Rounds(AbstractStepSolver):
                 delta_t=jnp.zeros((0,), k.dtype), slip=jnp.zeros_like(state.shear),
                 stick=(p > 0) & (problem.friction > 0), sliding=jnp.array(False),
                 iterations=state.iterations, rounds=state.rounds,
-                residual=normal.residual, converged=normal.converged)
+                residual=normal.residual, converged=normal.converged,
+                result=RESULTS.where(normal.converged, result,
+                                     RESULTS.max_steps_reached))
         approach, normal_residual = normal.approach, normal.residual
         if problem.coupled:
             # The normal conditions at the returned (p, q): the last normal solve saw
@@ -227,7 +238,11 @@ class Rounds(AbstractStepSolver):
                                      problem.tangential_force_control)
             limit = problem.operator.grid.cell_area * jnp.sum(problem.friction * p)
             gross = gross_sliding(f_norm, limit, k.rtol)
-        result = step_outcome(problem, p, converged, k.rtol)
+        # Rounds that changed nothing with an inner solve short of its tolerance:
+        # that solve's steps ran out.
+        failure = RESULTS.where(result == RESULTS.successful,
+                                RESULTS.max_steps_reached, result)
+        result = step_outcome(problem, p, converged, k.rtol, failure)
         return make_result(
             pressure=p, shear=state.shear, approach=approach,
             delta_t=tang.delta, slip=tang.slip + problem.previous_slip, stick=stick,

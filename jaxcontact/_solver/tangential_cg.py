@@ -47,7 +47,8 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
-from .base import AbstractStepSolver, loop
+from .._results import RESULTS
+from .base import AbstractStepSolver, run
 from .base import safe_div as _safe_div
 from .residual import coulomb_residual, rigid_tangential_displacement
 from .tangential import TangentialState, dot, project
@@ -129,8 +130,9 @@ class _TangentialCGState(eqx.Module):
 
 class TangentialCG(AbstractStepSolver):
     """The uncoupled tangential projected CG (see the module docs), for a known
-    pressure: the tangential half of every `jc.Rounds` round. Runs on a
-    `TangentialOperator` (`solve_state`), not on a whole step.
+    pressure: the tangential half of every `jc.Rounds` round. Its problem is a
+    `TangentialOperator`, not a whole step; its guess the starting shear `q0`
+    `(nd, nx, ny)`; its output a `TangentialState`.
 
     **Arguments:** `rtol` (`None`: `1e-8` in float64, `1e-5` in float32), `max_steps`,
     `resync_every` (exact displacements this often).
@@ -141,14 +143,16 @@ class TangentialCG(AbstractStepSolver):
     resync_every: int = eqx.field(static=True, default=25)
 
     def supports(self, problem):
-        return ("it solves the tangential problem at a known pressure; use jc.Rounds() "
-                "for a whole step")
+        if isinstance(problem, TangentialOperator):
+            return None
+        return ("it solves the tangential problem at a known pressure (a "
+                "TangentialOperator); use jc.Rounds() for a whole step")
 
     def step_limit(self) -> int:
         return self.max_steps
 
-    def setup(self, problem):
-        raise NotImplementedError("TangentialCG runs on a TangentialOperator")
+    def setup(self, problem: TangentialOperator) -> TangentialOperator:
+        return problem
 
     def init(self, problem, k: TangentialOperator, q0) -> _TangentialCGState:
         q0 = k.fix_load(project(q0, k.bound))
@@ -160,7 +164,7 @@ class TangentialCG(AbstractStepSolver):
             applications=jnp.array(1))
 
     def terminate(self, problem, k, s):
-        return (s.residual <= k.rtol) | k.skip
+        return (s.residual <= k.rtol) | k.skip, RESULTS.successful
 
     def step(self, problem, k: TangentialOperator, s: _TangentialCGState):
         nd, dtype, bound, rtol = k.nd, k.dtype, k.bound, k.rtol
@@ -265,13 +269,8 @@ class TangentialCG(AbstractStepSolver):
             iterations=s.it, residual=res, converged=res <= k.rtol,
             applications=s.applications)
 
-    def postprocess(self, problem, k, s):
-        raise NotImplementedError(
-            "use solve_state: TangentialCG returns a TangentialState")
-
-    def solve_state(self, k: TangentialOperator, q0) -> TangentialState:
-        """Solve from the shear `q0` (projected and load-corrected first)."""
-        return self.tangential_state(k, loop(self, None, k, self.init(None, k, q0)))
+    def postprocess(self, problem, k, s, result) -> TangentialState:
+        return self.tangential_state(k, s)
 
 
 def tangential_cg(
@@ -315,4 +314,4 @@ def tangential_cg(
                            self_compliance, rtol=rtol, precondition=precondition,
                            skip=skip)
     solver = TangentialCG(rtol=rtol, max_steps=max_steps, resync_every=resync_every)
-    return solver.solve_state(k, jnp.zeros_like(b) if q0 is None else q0)
+    return run(solver, k, jnp.zeros_like(b) if q0 is None else q0).output
