@@ -1,5 +1,7 @@
 """What the benchmark scripts share: the Hertz sphere, machine and version records, the
-FFT floor of an iteration, and the layout of a results file (`results/SCHEMA.md`).
+FFT floor of an iteration, and the one layout of a results file (`results/SCHEMA.md`):
+`header` starts a record, `write_results` checks it and writes
+`results/<benchmark>/<machine>[_<variant>].json`.
 
 Imports nothing from another benchmark, and jax only inside the functions (so that a
 script that runs its cases in subprocesses, `run.py`, stays light in the parent).
@@ -8,6 +10,7 @@ script that runs its cases in subprocesses, `run.py`, stays light in the parent)
 from __future__ import annotations
 
 import datetime
+import json
 import math
 import os
 import platform
@@ -108,17 +111,37 @@ def _loadavg():
         return None
 
 
-def header(benchmark: str, argv=None) -> dict:
+def machine_name(machine: dict) -> str:
+    """A short name of a machine for file names: the GPU's kind on a GPU (`"h200"`),
+    else the CPU's vendor and family (`"intel_xeon"`, `"amd_epyc"`); `"unknown"`
+    where the record names neither."""
+    backend = machine.get("backend")
+    kind = machine.get("device_kind")
+    if backend in ("gpu", "cuda", "rocm", "tpu") and kind and kind != "unknown":
+        words = [w for w in kind.lower().split() if w not in ("nvidia", "amd", "tesla")]
+    else:
+        text = str(machine.get("processor") or "")
+        for junk in ("(R)", "(TM)", "(r)", "(tm)", "CPU", "Processor"):
+            text = text.replace(junk, " ")
+        words = text.lower().split("@")[0].split()[:2]
+    name = "_".join("".join(c for c in w if c.isalnum()) for w in words).strip("_")
+    return name if name and name not in ("unknown", "x8664") else "unknown"
+
+
+def header(benchmark: str, argv=None, variant: str | None = None) -> dict:
     """The fields every results file starts with (`results/SCHEMA.md`): benchmark,
-    date, command, machine, commit, dirty, versions. The caller adds `settings` and
-    `rows` (and, optionally, `summary` and `notes`)."""
+    variant, date, command, machine (with its `name`), commit, dirty, versions. The
+    caller adds `settings` and `rows` (and, optionally, `summary` and `notes`) and
+    hands the record to `write_results`."""
     info = machine_info()
     lib = library_info()
     versions = {key: info.pop(key) for key in ("python", "jax", "jaxlib", "numpy")}
     versions["jaxcontact"] = lib["jaxcontact"]
     info["load_average"] = _loadavg()
+    info = {"name": machine_name(info), **info}
     return {
         "benchmark": benchmark,
+        "variant": variant,
         "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
         "command": " ".join(
             [Path(sys.argv[0]).name, *(sys.argv[1:] if argv is None else argv)]),
@@ -129,10 +152,108 @@ def header(benchmark: str, argv=None) -> dict:
     }
 
 
-def results_path(benchmark: str, name: str | None = None) -> Path:
-    """`benchmarks/results/<benchmark>/<name>.json` (`name` defaults to the
-    benchmark's)."""
-    return RESULTS / benchmark / f"{name or benchmark}.json"
+def results_path(benchmark: str, variant: str | None = None,
+                 machine: str | None = None) -> Path:
+    """`benchmarks/results/<benchmark>/<machine>[_<variant>].json`; `machine`
+    defaults to this machine's name (`machine_name`, which imports jax)."""
+    if machine is None:
+        machine = machine_name(machine_info())
+    stem = machine + (f"_{variant}" if variant else "")
+    return RESULTS / benchmark / f"{stem}.json"
+
+
+# The keys of a results file and their types (`results/SCHEMA.md`); a value a
+# converted old run did not record is the string "unknown".
+SCHEMA = {
+    "benchmark": str,
+    "variant": (str, type(None)),
+    "date": str,
+    "command": str,
+    "machine": dict,
+    "commit": (str, type(None)),
+    "dirty": (bool, str, type(None)),
+    "versions": dict,
+    "settings": dict,
+    "rows": list,
+}
+MACHINE_KEYS = ("name", "platform", "processor", "cpu_count", "device_kind", "backend")
+VERSION_KEYS = ("python", "jax", "jaxlib", "numpy", "jaxcontact")
+
+
+def schema_problems(record) -> list[str]:
+    """What in `record` breaks the layout of `results/SCHEMA.md` (empty if nothing):
+    a missing key, a value of the wrong type, a row that is not an object."""
+    if not isinstance(record, dict):
+        return [f"a results record is a JSON object, not {type(record).__name__}"]
+    problems = []
+    for key, kind in SCHEMA.items():
+        if key not in record:
+            problems.append(f"missing key {key!r}")
+        elif not isinstance(record[key], kind):
+            problems.append(f"{key!r} is {type(record[key]).__name__}")
+    for block, keys in (("machine", MACHINE_KEYS), ("versions", VERSION_KEYS)):
+        if isinstance(record.get(block), dict):
+            problems += [f"missing {block}.{k}" for k in keys if k not in record[block]]
+    if isinstance(record.get("machine"), dict) and not isinstance(
+            record["machine"].get("name"), str):
+        problems.append("machine.name is not a string")
+    if isinstance(record.get("rows"), list):
+        if not record["rows"]:
+            problems.append("'rows' is empty")
+        bad = [i for i, row in enumerate(record["rows"]) if not isinstance(row, dict)]
+        if bad:
+            problems.append(f"rows {bad[:5]} are not objects")
+    if "summary" in record and not isinstance(record["summary"], dict):
+        problems.append("'summary' is not an object")
+    if "notes" in record and not (isinstance(record["notes"], list) and all(
+            isinstance(n, str) for n in record["notes"])):
+        problems.append("'notes' is not a list of strings")
+    return problems
+
+
+def _jsonable(value):
+    """NumPy and JAX scalars and arrays as JSON numbers and lists."""
+    if hasattr(value, "tolist"):
+        return value.tolist()
+    if isinstance(value, (set, tuple)):
+        return list(value)
+    raise TypeError(f"{type(value).__name__} is not JSON-serialisable: {value!r}")
+
+
+def write_results(record: dict, out=None) -> Path:
+    """Check `record` against `results/SCHEMA.md` and write it to `out` (default
+    `results_path(benchmark, variant, machine name)`); return the path."""
+    problems = schema_problems(record)
+    if problems:
+        raise ValueError("results record breaks results/SCHEMA.md: "
+                         + "; ".join(problems))
+    path = Path(out) if out else results_path(
+        record["benchmark"], record["variant"], record["machine"]["name"])
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(record, indent=1, default=_jsonable) + "\n")
+    return path
+
+
+def part_rows(part: str, rows) -> list[dict]:
+    """`rows` (a list of objects, or one object) tagged `{"part": part, ...}`: the
+    rows of a script that measures several kinds of case."""
+    rows = [rows] if isinstance(rows, dict) else rows
+    return [{"part": part, **row} for row in rows]
+
+
+def rows_of(record: dict, part: str) -> list[dict]:
+    """The rows of `record` tagged `part` (`part_rows`), without the tag."""
+    return [{k: v for k, v in row.items() if k != "part"}
+            for row in record.get("rows", []) if row.get("part") == part]
+
+
+def load_results(path) -> dict:
+    """A results file, checked against `results/SCHEMA.md`."""
+    record = json.loads(Path(path).read_text())
+    problems = schema_problems(record)
+    if problems:
+        raise ValueError(f"{path}: " + "; ".join(problems))
+    return record
 
 
 # ---- Timing -----------------------------------------------------------------------

@@ -29,15 +29,18 @@ reports jaxcontact's time per CG iteration (solve time / iterations) over it.
 
     PYTHONPATH=. .venv/bin/python benchmarks/aspher_peer.py \
         --peer-python /work/aspher-venv/bin/python
+
+Results go to `benchmarks/results/aspher_peer/<machine>_<surface>[_tamaas].json`
+(`--out`; layout: `results/SCHEMA.md`): a row per n (its references, its timed rows
+per code, precision, mode and tolerance); the problem in `settings`, the equal-error
+times and ratios in `summary`.
 """
 
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
 import os
-import platform
 import subprocess
 import sys
 import tempfile
@@ -58,7 +61,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 sys.path.insert(0, str(HERE))
 
-from _common import results_path  # noqa: E402
+from _common import header, load_results, write_results  # noqa: E402
 
 import jaxcontact as jc  # noqa: E402
 
@@ -414,7 +417,7 @@ def time_at_error(rows, target: float):
 def summarise(result: dict, targets=(1e-4, 3e-5, 1e-5)) -> dict:
     """Per n: time of each configuration at equal error, and ratios to jaxcontact."""
     out = {}
-    for case in result["cases"]:
+    for case in result["rows"]:
         by_cfg: dict = {}
         for r in case["rows"]:
             by_cfg.setdefault(f"{r['code']} {r['precision']} {r['mode']}", []).append(r)
@@ -454,7 +457,8 @@ def main(argv=None) -> int:
                          "Python has it")
     ap.add_argument("--peer-python", default=os.environ.get(
         "JAXCONTACT_ASPHER_PYTHON", "/work/aspher-venv/bin/python"))
-    ap.add_argument("--out", default=str(results_path("aspher_peer")))
+    ap.add_argument("--out", default=None, help="JSON path (default "
+                    "results/aspher_peer/<machine>_<surface>[_tamaas].json)")
     ap.add_argument("--summarise", metavar="JSON",
                     help="only (re)compute the equal-error summary of a results file")
     ap.add_argument("--iteration-cost", metavar="JSON",
@@ -462,15 +466,15 @@ def main(argv=None) -> int:
                          "--n and store it in this results file")
     args = ap.parse_args(argv)
     if args.iteration_cost:
-        res = json.loads(Path(args.iteration_cost).read_text())
-        res["iteration_cost"] = iteration_cost(args.n[0])
-        Path(args.iteration_cost).write_text(json.dumps(res, indent=1))
-        print(json.dumps(res["iteration_cost"], indent=1))
+        res = load_results(args.iteration_cost)
+        res["summary"]["iteration_cost"] = iteration_cost(args.n[0])
+        write_results(res, args.iteration_cost)
+        print(json.dumps(res["summary"]["iteration_cost"], indent=1))
         return 0
     if args.summarise:
-        res = json.loads(Path(args.summarise).read_text())
-        res["summary"] = summarise(res)
-        Path(args.summarise).write_text(json.dumps(res, indent=1))
+        res = load_results(args.summarise)
+        res["summary"] = {**res.get("summary", {}), **summarise(res)}
+        write_results(res, args.summarise)
         print(json.dumps(res["summary"], indent=1))
         return 0
 
@@ -489,23 +493,24 @@ def main(argv=None) -> int:
     except Exception as exc:
         log(f"peer failed: {exc}")
         peer = None
-    result = {
+    result = header("aspher_peer", argv, variant=args.surface
+                    + ("_tamaas" if args.tamaas else ""))
+    result["machine"]["load_average_before"] = os.getloadavg()
+    result["settings"] = {
+        "n": args.n, "tol": args.tol, "repeats": args.repeats,
         "problem": {"radius": RADIUS, "shear": SHEAR, "poisson": NU, "force": FORCE,
                     "e_star": E_STAR, "a_hertz": A_HERTZ, "delta_hertz": DELTA_HERTZ,
                     "size": SIZE, "size_over_a": 5.5, "hurst": HURST,
                     "k_cycles_per_L": [K_LOW, K_HIGH], "rms": RMS,
                     "rms_over_delta": 0.15, "seed": SEED, "periodic": False,
                     "control": "load", "tight": TIGHT, "surface": args.surface},
-        "machine": {"cpu_count": os.cpu_count(), "platform": platform.platform(),
-                    "jax": jax.__version__, "loadavg_before": os.getloadavg(),
-                    "date": datetime.datetime.now(datetime.UTC).isoformat()},
         "peer_probe": probe,
-        "cases": [],
     }
+    result["rows"] = []
     with tempfile.TemporaryDirectory() as td:
         try:
             for n in args.n:
-                result["cases"].append(
+                result["rows"].append(
                     run_n(n, args.tol, args.repeats, peer, Path(td), log,
                           tamaas=args.tamaas and bool(
                               (probe or {}).get("tamaas", {}).get("available")),
@@ -513,11 +518,9 @@ def main(argv=None) -> int:
         finally:
             if peer is not None:
                 peer.close()
-    result["machine"]["loadavg_after"] = os.getloadavg()
+    result["machine"]["load_average_after"] = os.getloadavg()
     result["summary"] = summarise(result)
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps(result, indent=1))
-    log(f"wrote {args.out}")
+    log(f"wrote {write_results(result, args.out)}")
     return 0
 
 

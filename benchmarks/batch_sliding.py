@@ -19,8 +19,8 @@ two answers.
     python benchmarks/batch_sliding.py [--axis friction|load|material]
         [--coupling none|full] [--configs 8:0 8:3 8:8 64:20] [--max-steps 2000]
 
-Results: `benchmarks/results/batch_sliding/batch_sliding.json` (friction, "none"), else
-`batch_sliding_{axis}_{coupling}.json` beside it (layout: `results/SCHEMA.md`).
+Results: `benchmarks/results/batch_sliding/<machine>_<axis>_<coupling>.json` (layout:
+`results/SCHEMA.md`), a row per batch configuration.
 """
 
 import argparse
@@ -41,7 +41,7 @@ import numpy as np  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
-from _common import header, results_path  # noqa: E402
+from _common import header, write_results  # noqa: E402
 
 import jaxcontact as jc  # noqa: E402
 
@@ -55,20 +55,15 @@ def main():
     parser.add_argument("--axis", choices=["friction", "load", "material"],
                         default="friction")
     parser.add_argument("--coupling", choices=["none", "full"], default="none")
-    parser.add_argument("--out", default=None)
+    parser.add_argument("--out", default=None, help="JSON path (default "
+                        "results/batch_sliding/<machine>_<axis>_<coupling>.json)")
     args = parser.parse_args()
-    if args.out is None:
-        name = ("batch_sliding"
-                if (args.axis, args.coupling) == ("friction", "none")
-                else f"batch_sliding_{args.axis}_{args.coupling}")
-        args.out = str(results_path("batch_sliding", name))
-    record = header("batch_sliding")
+    record = header("batch_sliding", variant=f"{args.axis}_{args.coupling}")
     rows = [run(args, *map(int, c.split(":"))) for c in args.configs]
     settings = dict(axis=args.axis, coupling=args.coupling, configs=args.configs,
                     max_steps=args.max_steps, repeats=args.repeats)
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps(
-        dict(**record, settings=settings, rows=rows), indent=1))
+    path = write_results(dict(**record, settings=settings, rows=rows), args.out)
+    print(f"wrote {path}")
 
 
 def run(args, batch_size, n_sliding):

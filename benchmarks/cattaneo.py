@@ -26,12 +26,14 @@ Usage::
     python benchmarks/cattaneo.py            # everything
     python benchmarks/cattaneo.py --quick    # small sizes, 30 Spence increments
 
-Results go to `benchmarks/results/cattaneo/cattaneo.json`.
+Results go to `benchmarks/results/cattaneo/<machine>.json` (`--quick`:
+`<machine>_quick.json`; layout: `results/SCHEMA.md`): rows tagged by `part`
+(`cattaneo_mindlin`, `targets`, `normal_vs_coupled`, `spence`, `spence_float32`,
+`spence_tolerance`, `ratio_tolerance`); the two tolerance studies' references in
+`summary`.
 """
 
 import argparse
-import json
-import platform
 import sys
 import time
 from pathlib import Path
@@ -55,7 +57,11 @@ from _common import (  # noqa: E402
     RADIUS,
     SHEAR_MODULUS,
     fft_floor,
+    header,
+    load_results,
+    part_rows,
     results_path,
+    write_results,
 )
 
 import jaxcontact as jc  # noqa: E402
@@ -264,29 +270,39 @@ def ratio_versus_tolerance(rtols=(1e-4, 1e-5, 1e-6, 1e-7, 1e-8), n=256, width=4.
                 rows=rows)
 
 
+def _study(part, study):
+    """The rows of a tolerance study tagged `part`, and its other keys (the
+    reference) for `summary`."""
+    rows = part_rows(part, study["rows"])
+    return rows, {k: v for k, v in study.items() if k != "rows"}
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true")
-    parser.add_argument("--out", default=str(results_path("cattaneo")))
+    parser.add_argument("--out", default=None,
+                        help="JSON path (default results/cattaneo/<machine>.json)")
     parser.add_argument("--only-ratio-tolerance", action="store_true",
-                        help="run ratio_versus_tolerance alone and update its entry "
+                        help="run ratio_versus_tolerance alone and replace its rows "
                         "in --out")
     args = parser.parse_args()
+    variant = "quick" if args.quick else None
     if args.only_ratio_tolerance:
-        out = Path(args.out)
-        results = json.loads(out.read_text()) if out.exists() else {}
-        results["ratio_tolerance"] = ratio_versus_tolerance(
-            n=128 if args.quick else 256)
-        for row in results["ratio_tolerance"]["rows"]:
+        out = Path(args.out or results_path("cattaneo", variant))
+        record = load_results(out) if out.exists() else {
+            **header("cattaneo", variant=variant), "settings": {"dtype": "float64"},
+            "rows": [], "summary": {}}
+        rows, reference = _study("ratio_tolerance", ratio_versus_tolerance(
+            n=128 if args.quick else 256))
+        for row in rows:
             print("full / normal:", row)
-        out.write_text(json.dumps(results, indent=2))
-        print(f"updated {out}")
+        record["rows"] = [r for r in record["rows"]
+                          if r.get("part") != "ratio_tolerance"] + rows
+        record.setdefault("summary", {})["ratio_tolerance"] = reference
+        print(f"updated {write_results(record, out)}")
         return
     sizes = [64, 128] if args.quick else [64, 128, 256, 512]
     results = dict(
-        machine=dict(platform=platform.platform(), processor=platform.processor(),
-                     python=platform.python_version(), jax=jax.__version__,
-                     device=str(jax.devices()[0]), dtype="float64"),
         cattaneo_mindlin=[cattaneo(n, 4.0) for n in sizes],
         targets=[cattaneo(105, 2.3), cattaneo(256, 5.5)],
         normal_vs_coupled=normal_vs_coupled(128 if args.quick else 256),
@@ -308,9 +324,16 @@ def main():
         print("Spence, float64, rtol:", row)
     for row in results["ratio_tolerance"]["rows"]:
         print("full / normal:", row)
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps(results, indent=2))
-    print(f"wrote {args.out}")
+    record = header("cattaneo", variant=variant)
+    record["settings"] = {"dtype": "float64", "quick": args.quick, "sizes": sizes}
+    record["rows"], record["summary"] = [], {}
+    for part, value in results.items():
+        if part in ("spence_tolerance", "ratio_tolerance"):
+            rows, record["summary"][part] = _study(part, value)
+        else:
+            rows = part_rows(part, value)
+        record["rows"] += rows
+    print(f"wrote {write_results(record, args.out)}")
 
 
 if __name__ == "__main__":

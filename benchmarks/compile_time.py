@@ -14,7 +14,8 @@ Usage::
     python benchmarks/compile_time.py                 # every preset, both solvers
     python benchmarks/compile_time.py --presets lc sliding --solvers default
 
-Results: `benchmarks/results/compile_time/compile_time.json` (`results/SCHEMA.md`; per
+Results: `benchmarks/results/compile_time/<machine>.json` (`--variant`: a name after
+the machine's, e.g. for an older tree's `--root`; layout: `results/SCHEMA.md`; per
 row: preset, solver, first and second call [s], compile = first - second, iterations,
 converged; the machine block with its load average, since compile time on a shared
 2-core machine varies ~2x).
@@ -30,7 +31,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
-from _common import header, results_path  # noqa: E402
+from _common import header, write_results  # noqa: E402
 
 
 _CHILD = r"""
@@ -69,7 +70,10 @@ def main():
     parser.add_argument("--solvers", nargs="+", default=["default", "joint"])
     parser.add_argument("--n", type=int, default=64)
     parser.add_argument("--steps", type=int, default=21)
-    parser.add_argument("--out", default=str(results_path("compile_time")))
+    parser.add_argument("--out", default=None,
+                        help="JSON path (default results/compile_time/<machine>.json)")
+    parser.add_argument("--variant", default=None,
+                        help="the file's name after the machine's")
     parser.add_argument("--root", default=str(ROOT),
                         help="the checkout whose jaxcontact is measured (e.g. an older "
                              "commit's `git archive`, for a before/after table)")
@@ -91,14 +95,13 @@ def main():
             else:
                 rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
             print(json.dumps(rows[-1]), flush=True)
-    result = header("compile_time")  # `commit` is this checkout's, not `--root`'s
+    # `commit` is this checkout's, not `--root`'s
+    result = header("compile_time", variant=args.variant)
     result["machine"]["load_average_before"] = load_before
     result["settings"] = dict(n=args.n, steps=args.steps, solvers=args.solvers,
                               label=args.label, root=args.root)
     result["rows"] = rows
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps(result, indent=1))
-    print(f"wrote {args.out}")
+    print(f"wrote {write_results(result, args.out)}")
 
 
 if __name__ == "__main__":

@@ -52,13 +52,14 @@ Usage::
 Without an executable CONTACT is skipped (with a message) and jaxcontact still runs.
 CONTACT runs serially (one core); jaxcontact (XLA) may use every core the process is
 allowed: `--one-core` pins this process and CONTACT to one CPU. Results go to
-`benchmarks/results/contact_peer/contact_peer.json` (`--out`).
+`benchmarks/results/contact_peer/<machine>.json` (`--quick`: `<machine>_quick.json`;
+`--out`; layout: `results/SCHEMA.md`): a row per scene and tolerance; CONTACT's
+executable and revision in `settings.contact`, the Markdown table in `summary`.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import re
 import resource
@@ -83,7 +84,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 import contact_inputs  # noqa: E402
-from _common import library_info, machine_info, results_path  # noqa: E402
+from _common import header, load_results, results_path, write_results  # noqa: E402
 
 import jaxcontact as jc  # noqa: E402
 
@@ -559,7 +560,8 @@ def main():
         help="keep CONTACT's files here (default: a temporary folder)",
     )
     parser.add_argument(
-        "--out", default=str(results_path("contact_peer"))
+        "--out", default=None,
+        help="JSON path (default results/contact_peer/<machine>.json)",
     )
     args = parser.parse_args()
     if args.quick:
@@ -572,16 +574,17 @@ def main():
     workdir = Path(args.workdir or tempfile.mkdtemp(prefix="contact_peer_"))
     workdir.mkdir(parents=True, exist_ok=True)
 
-    results = dict(
-        machine=dict(
-            machine_info(),
-            load_average_start=os.getloadavg(),
-            niceness=os.nice(0),
-            affinity=sorted(os.sched_getaffinity(0)),
-        ),
-        library=library_info(),
-        contact=dict(executable=exe, note=why),
+    out = Path(args.out or results_path("contact_peer",
+                                        "quick" if args.quick else None))
+    results = header("contact_peer", variant="quick" if args.quick else None)
+    results["machine"].update(
+        load_average_start=os.getloadavg(),
+        niceness=os.nice(0),
+        affinity=sorted(os.sched_getaffinity(0)),
+    )
+    results.update(
         settings=dict(
+            contact=dict(executable=exe, note=why),
             nu=args.nu,
             mu=args.mu,
             N=args.N,
@@ -593,6 +596,7 @@ def main():
             one_core=args.one_core,
         ),
         rows=[],
+        summary={},
     )
     start = time.perf_counter()
     for name, kind, params in scenes(args):
@@ -601,33 +605,33 @@ def main():
             results["rows"].append(row)
             print_row(row)
     results["machine"]["load_average_end"] = os.getloadavg()
-    results["total_s"] = time.perf_counter() - start
+    results["summary"]["total_s"] = time.perf_counter() - start
     if exe and results["rows"]:
-        results["contact"]["revision"] = results["rows"][0]["contact"]["revision"]
-    if args.update and Path(args.out).exists():
+        results["settings"]["contact"]["revision"] = (
+            results["rows"][0]["contact"]["revision"])
+    this = {k: results[k] for k in ("date", "commit", "machine", "settings")}
+    this["total_s"] = results["summary"]["total_s"]
+    if args.update and out.exists():
         # keep the earlier run, replace its rows of the same (scene, tol), and keep this
         # run's settings and machine block beside it
-        old = json.loads(Path(args.out).read_text())
+        old = load_results(out)
+        updates = old["summary"].setdefault("updates", [])
         new = {(r["scene"], r["rtol"]): r for r in results["rows"]}
         for r in results["rows"]:
-            r["from_update"] = len(old.get("updates", []))
+            r["from_update"] = len(updates)
         old["rows"] = [new.pop((r["scene"], r["rtol"]), r) for r in old["rows"]]
         old["rows"] += list(new.values())
-        old.setdefault("updates", []).append(
-            {k: results[k] for k in ("machine", "library", "settings", "total_s")}
-        )
+        updates.append(this)
         results = old
     table = markdown_table(results["rows"])
-    results["table_markdown"] = table
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps(results, indent=2))
+    results["summary"]["table_markdown"] = table
+    path = write_results(results, out)
     print(table)
-    this = results.get("updates", [results])[-1] if args.update else results
     print(
         f"load average start {this['machine']['load_average_start']} end "
         f"{this['machine']['load_average_end']}; total {this['total_s']:.0f} s"
     )
-    print(f"wrote {args.out}; CONTACT files in {workdir}")
+    print(f"wrote {path}; CONTACT files in {workdir}")
 
 
 if __name__ == "__main__":

@@ -22,10 +22,11 @@ Usage::
 
     python benchmarks/fit.py                 # 64^2 x 40
     python benchmarks/fit.py --n 32 --nt 20 --optimiser lm
-    python benchmarks/fit.py --n 16 --nt 20 --batch 16   # -> results/fit/fit_batch.json
+    python benchmarks/fit.py --n 16 --nt 20 --batch 16   # -> <machine>_batch_16.json
 
-Results go to `benchmarks/results/fit/fit.json` (`--batch`: `fit_batch.json`), or
-`--out` (`results/SCHEMA.md`).
+Results go to `benchmarks/results/fit/<machine>.json` (one optimiser:
+`<machine>_lm.json`, `<machine>_lbfgs.json`; `--batch`: `<machine>_batch_<n>.json`),
+or `--out` (layout: `results/SCHEMA.md`).
 """
 
 import argparse
@@ -46,7 +47,7 @@ import jaxcontact as jc  # noqa: E402
 
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import header, results_path  # noqa: E402
+from _common import header, write_results  # noqa: E402
 
 
 R, NU = 3.5e-3, 0.38
@@ -146,20 +147,18 @@ def main():
     parser.add_argument("--batch", type=int, default=0,
                         help="time a batch of this many curves instead")
     parser.add_argument("--out", default=None,
-                        help="JSON path (default results/fit/fit.json, with "
-                             "--batch results/fit/fit_batch.json)")
+                        help="JSON path (default results/fit/<machine>.json, with "
+                             "--batch results/fit/<machine>_batch_<n>.json)")
     args = parser.parse_args()
     if args.batch:
-        result = header("fit")
+        result = header("fit", variant=f"batch_{args.n}")
         result["settings"] = dict(n=args.n, nt=args.nt, batch=args.batch,
                                   dtype="float64")
         result["rows"] = [run_batch(args.n, args.nt, args.batch)]
-        out = Path(args.out or results_path("fit", "fit_batch"))
-        out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_text(json.dumps(result, indent=2))
-        print("wrote", out)
+        print("wrote", write_results(result, args.out))
         return
-    result = header("fit")
+    result = header("fit", variant=None if args.optimiser == "both"
+                    else args.optimiser)
     cases = []
     for optimiser in (("lm", "lbfgs") if args.optimiser == "both"
                       else (args.optimiser,)):
@@ -172,10 +171,7 @@ def main():
     result["settings"] = dict(n=args.n, nt=args.nt, optimiser=args.optimiser,
                               dtype="float64")
     result["rows"] = cases
-    out = Path(args.out or results_path("fit"))
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(result, indent=2))
-    print("wrote", out)
+    print("wrote", write_results(result, args.out))
 
 
 if __name__ == "__main__":

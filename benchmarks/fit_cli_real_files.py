@@ -19,8 +19,9 @@ of `log q`), i.e. the difference is within the reported uncertainty.
     python benchmarks/fit_cli_real_files.py [--only creep|relaxation] [--settings a,b]
                                             [--write-docs] [--tables]
 
-Writes `benchmarks/results/fit_cli_real_files/fit_cli_real_files.json` (machine,
-commit, versions, settings, rows) and prints the tables; `--write-docs` also writes
+Writes `benchmarks/results/fit_cli_real_files/<machine>.json` (`--out`; layout:
+`results/SCHEMA.md`: a row per file and setting, with its console text; the agreement
+checks in `summary`) and prints the tables; `--write-docs` also writes
 them into `docs/guides/fitting.md` (between its markers), so no number there is typed
 by hand.
 About 20 minutes on a 2-core CPU (the fits).
@@ -29,13 +30,15 @@ About 20 minutes on a 2-core CPU (the fits).
 import argparse
 import json
 import math
-import os
-import platform
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
+
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import header, load_results, results_path, write_results  # noqa: E402
 
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -45,8 +48,6 @@ FILES = {"creep": DATA / "fmt-jpk-cc_pr14-polymergel-2021.06.30.jpk-force",
 SETTINGS = {"defaults": [], "bins x2": ["--samples", "16,48,8"], "n 48": ["--n", "48"],
             "with retract": ["--segments", "approach,hold,retract"]}
 MODULI = ("E_at_approach_Pa", "E_inf_Pa", "E_0_Pa")
-OUT = ROOT / "benchmarks" / "results" / "fit_cli_real_files" / "fit_cli_real_files.json"
-OUT.parent.mkdir(exist_ok=True)
 BEGIN = "<!-- fit_cli_real_files.py: begin -->"
 END = "<!-- fit_cli_real_files.py: end -->"
 
@@ -97,25 +98,6 @@ def row(name, setting, report, seconds, code):
     }
 
 
-def machine():
-    import jax
-
-    import jaxcontact
-
-    cpu = platform.processor()
-    try:
-        with open("/proc/cpuinfo") as fh:
-            cpu = next(line.split(":", 1)[1].strip() for line in fh
-                       if line.startswith("model name"))
-    except (OSError, StopIteration):
-        pass
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT,
-                            capture_output=True, text=True).stdout.strip()
-    return {"cpu": cpu, "cores": os.cpu_count(), "python": platform.python_version(),
-            "jax": jax.__version__, "jaxcontact": jaxcontact.__version__,
-            "commit": commit}
-
-
 def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--only", choices=sorted(FILES), help="one file only")
@@ -124,17 +106,19 @@ def main():
     p.add_argument("--write-docs", action="store_true",
                    help="write the tables into docs/guides/fitting.md")
     p.add_argument("--tables", action="store_true",
-                   help="print the tables of the stored result only (no fits)")
+                   help="print the tables of the stored result (--out) only (no fits)")
+    p.add_argument("--out", default=None, help="JSON path (default "
+                   "results/fit_cli_real_files/<machine>.json)")
     args = p.parse_args()
     if args.tables:
-        result = json.loads(OUT.read_text())
+        result = load_results(args.out or results_path("fit_cli_real_files"))
         print(tables(result))
         if args.write_docs:
             write_docs(result)
         return
     names = [args.only] if args.only else list(FILES)
     chosen = [s.strip() for s in args.settings.split(",")]
-    rows, consoles, checks = [], {}, {}
+    rows, checks = [], {}
     with tempfile.TemporaryDirectory() as tmp:
         for name in names:
             reports = {}
@@ -142,17 +126,19 @@ def main():
                 report, text, seconds, code = run_cli(
                     FILES[name], SETTINGS[setting], Path(tmp) / setting)
                 reports[setting] = report
-                rows.append(row(name, setting, report, seconds, code))
-                consoles[f"{name} / {setting}"] = text
+                rows.append({**row(name, setting, report, seconds, code),
+                             "console": text})
                 print(text, f"[{seconds:.0f} s, exit {code}]", flush=True)
             for other in chosen[1:]:
                 checks[f"{name}: defaults vs {other}"] = agreement(
                     reports[chosen[0]], reports[other])
-    result = {"benchmark": "fit_cli_real_files", "machine": machine(),
-              "settings": {k: SETTINGS[k] for k in chosen}, "radius_m": 5e-6,
-              "rows": rows, "agreement": checks, "console": consoles}
-    OUT.write_text(json.dumps(result, indent=2))
-    print(f"-> {OUT}")
+    partial = args.only or len(chosen) < len(SETTINGS)
+    variant = "_".join(([args.only] if args.only else []) + (
+        [s.replace(" ", "") for s in chosen] if len(chosen) < len(SETTINGS) else []))
+    result = {**header("fit_cli_real_files", variant=variant if partial else None),
+              "settings": {"cli": {k: SETTINGS[k] for k in chosen}, "radius_m": 5e-6},
+              "rows": rows, "summary": {"agreement": checks}}
+    print(f"-> {write_results(result, args.out)}")
     print(tables(result))
     if args.write_docs:
         write_docs(result)
@@ -161,9 +147,10 @@ def main():
 def tables(result) -> str:
     """The Markdown tables of a result: a row a run, then the agreement checks."""
     m = result["machine"]
-    lines = [f"`jaxcontact fit FILE --radius 5e-6` on {m['cores']} cores ({m['cpu']}), "
-             f"jaxcontact {m['commit']}, float64; +- the reported total std "
-             "(optimiser, contact point, grid); s: the whole process's wall time.", "",
+    lines = [f"`jaxcontact fit FILE --radius 5e-6` on {m['cpu_count']} cores "
+             f"({m['processor']}), jaxcontact {result['commit'][:7]}, float64; +- the "
+             "reported total std (optimiser, contact point, grid); s: the whole "
+             "process's wall time.", "",
              "| file | setting | arms | quality (approach, hold x the noise) | "
              "E(T_app) [Pa] | E_inf [Pa] | E_0 [Pa] | Hertz E [Pa] | flags | s |",
              "|---|---|---|---|---|---|---|---|---|---|"]
@@ -179,7 +166,7 @@ def tables(result) -> str:
               "sqrt(s_a^2 + s_b^2)` (within the reported uncertainty at z <= 1).", "",
               "| check | " + " | ".join(f"z {k.removesuffix('_Pa')}" for k in MODULI)
               + " |", "|---|" + "---|" * len(MODULI)]
-    for name, c in result["agreement"].items():
+    for name, c in result["summary"]["agreement"].items():
         lines.append(f"| {name} | " + " | ".join(f"{c[k]['z']:.2f}" for k in MODULI)
                      + " |")
     return "\n".join(lines)

@@ -39,8 +39,10 @@ Usage::
 
     python benchmarks/fit_real_files.py [--full]
 
-Writes `benchmarks/results/fit_real_files.json`. Radius 5 um and nu = 0.5 are
-assumed (they only scale the `c`).
+Writes `benchmarks/results/fit_real_files/<machine>.json` (without `--full`:
+`<machine>_closed_form.json`; layout: `results/SCHEMA.md`: rows tagged by `part`,
+`floor`, `hold_only`, `exponent`, `full_model`; the noise baselines in `summary`).
+Radius 5 um and nu = 0.5 are assumed (they only scale the `c`).
 """
 
 import argparse
@@ -51,6 +53,7 @@ from pathlib import Path
 
 import numpy as np
 import scipy.optimize as so
+from _common import header, part_rows, write_results
 
 import jaxcontact as jc
 
@@ -206,12 +209,13 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--full", action="store_true",
                         help="also the full-model grid bias")
-    parser.add_argument("--out", default=str(Path(__file__).parent / "results"
-                                             / "fit_real_files.json"))
+    parser.add_argument("--out", default=None, help="JSON path (default "
+                        "results/fit_real_files/<machine>.json)")
     args = parser.parse_args()
-    load = os.getloadavg()
-    result = {"radius_m": R, "poisson": NU, "load_average_before": load,
-              "baselines": baselines(), "floor": [], "hold_only": [], "exponent": []}
+    record = header("fit_real_files", variant=None if args.full else "closed_form")
+    record["machine"]["load_average_before"] = os.getloadavg()
+    record["settings"] = {"radius_m": R, "poisson": NU, "full": args.full}
+    result = {"baselines": baselines(), "floor": [], "hold_only": [], "exponent": []}
     print(json.dumps(result["baselines"], indent=1), flush=True)
     for name, path in FILES.items():
         for contact in ("piecewise", "viscoelastic"):
@@ -242,11 +246,15 @@ def main():
                **summary(res, s, t, sigma)}
         result["exponent"].append(row)
         print(json.dumps(row), flush=True)
+    record["summary"] = {"baselines": result["baselines"]}
+    record["rows"] = [row for part in ("floor", "hold_only", "exponent")
+                      for row in part_rows(part, result[part])]
     if args.full:
-        result["full_model"] = full_model()
-    result["load_average_after"] = os.getloadavg()
-    Path(args.out).write_text(json.dumps(result, indent=1))
-    print("wrote", args.out)
+        full = full_model()
+        record["rows"] += part_rows("full_model", full.pop("rows"))
+        record["summary"]["full_model"] = full
+    record["machine"]["load_average_after"] = os.getloadavg()
+    print("wrote", write_results(record, args.out))
 
 
 if __name__ == "__main__":

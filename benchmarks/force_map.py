@@ -19,7 +19,8 @@ Usage::
 
     python benchmarks/force_map.py [--passes 2] [--tiny]
 
-Writes `benchmarks/results/force_map/force_map.json` (`results/SCHEMA.md`: a row per
+Writes `benchmarks/results/force_map/<machine>.json` (`--tiny`: `<machine>_tiny.json`;
+layout: `results/SCHEMA.md`: a row per
 pass and curve, with the stages' seconds: the fits for each arm count, the analysis
 refits, the grid check, the raw residual).
 """
@@ -38,7 +39,7 @@ import numpy as np
 
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import ROOT, header, results_path  # noqa: E402
+from _common import ROOT, header, write_results  # noqa: E402
 
 
 MAP = ROOT / "tests" / "data" / "fmt-jpk-fd_2020.02.07-16.29.05.036.jpk-qi-data"
@@ -110,7 +111,7 @@ def main():
     ap.add_argument("--tiny", action="store_true",
                     help="tests/test_force_map.py's tiny settings (8^2, 8 approach "
                          "bins, 1 arm, no refits, no grid check) instead of the "
-                         "command line's defaults; writes force_map_tiny.json")
+                         "command line's defaults; writes <machine>_tiny.json")
     args = ap.parse_args()
 
     import warnings
@@ -208,7 +209,7 @@ def main():
                 "compilation (here cold total - 4 x warm mean) comes on top once, and "
                 "again for every raw sample count in contact, bin count or optimiser "
                 "path not seen before")})
-    result = {**header("force_map"),
+    result = {**header("force_map", variant="tiny" if args.tiny else None),
               "settings": {"map": str(MAP.relative_to(ROOT)),
                            **json.loads(json.dumps(vars(settings), default=list)),
                            "contact": "viscoelastic", "baseline": "constant",
@@ -217,9 +218,7 @@ def main():
                            "versions_extra": {"afmformats": afmformats.__version__}},
               "rows": rows, "summary": summary, "notes": notes}
     result["machine"]["load_average_before"] = list(load_before)
-    path = results_path("force_map", "force_map_tiny" if args.tiny else None)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(result, indent=2, default=float))
+    path = write_results(result)
     print(json.dumps(summary, indent=1))
     print(f"-> {path}")
 

@@ -28,14 +28,13 @@ Usage::
     python benchmarks/gpu.py                  # on a GPU: < 8 minutes on one H100/H200
     python benchmarks/gpu.py --quick --out /tmp/gpu_quick.json
 
-Results: `benchmarks/results/gpu/gpu.json` (the device's name and kind in `machine`).
+Results: `benchmarks/results/gpu/<machine>.json` (`--quick`: `<machine>_quick.json`;
+layout: `results/SCHEMA.md`; the device's name and kind in `machine`): a row per case,
+the skipped cases and the total time in `summary`.
 """
 
 import argparse
-import datetime
 import json
-import os
-import platform
 import sys
 import time
 import warnings
@@ -55,7 +54,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 sys.path.insert(0, str(HERE))
 
-from _common import results_path  # noqa: E402
+from _common import header, write_results  # noqa: E402
 from aspher_peer import (  # noqa: E402
     FORCE,
     K_HIGH,
@@ -81,33 +80,6 @@ FULL = dict(sizes=[512, 1024, 2048, 4096], coupled_n=256, coupled_steps=None,
             gradient=(128, 50), sweep=(64, 21, 32), repeats=3)
 QUICK = dict(sizes=[48, 144], coupled_n=24, coupled_steps=6,
              gradient=(16, 5), sweep=(16, 5, 4), repeats=2)
-
-
-def machine() -> dict:
-    device = jax.devices()[0]
-    return {
-        "device": str(device),
-        "device_kind": getattr(device, "device_kind", "unknown"),
-        "platform": device.platform,
-        "device_count": jax.device_count(),
-        "host": platform.platform(),
-        "cpu_count": os.cpu_count(),
-        "jax": jax.__version__,
-        "python": platform.python_version(),
-        "date": datetime.datetime.now(datetime.UTC).isoformat(),
-        "commit": _commit(),
-    }
-
-
-def _commit() -> str:
-    """The checkout's commit (`unknown` where git or the .git folder is missing)."""
-    import subprocess
-
-    try:
-        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=HERE,
-                              capture_output=True, text=True, timeout=10).stdout.strip()
-    except (OSError, subprocess.SubprocessError):
-        return "unknown"
 
 
 def timed(fn, repeats: int) -> tuple[object, float, float]:
@@ -242,23 +214,26 @@ def main(argv=None) -> int:
                         help="seconds after which the remaining cases are skipped")
     parser.add_argument("--cases", nargs="+", default=list(CASES), choices=CASES,
                         help="which groups of cases to run (default: all)")
-    parser.add_argument("--out", default=str(results_path("gpu")))
+    parser.add_argument("--out", default=None,
+                        help="JSON path (default results/gpu/<machine>.json)")
     args = parser.parse_args(argv)
     plan = dict(QUICK if args.quick else FULL)
     if args.sizes:
         plan["sizes"] = args.sizes
     start = time.perf_counter()
-    result = {"machine": machine(), "plan": plan, "quick": args.quick,
-              "groups": args.cases, "cases": [],
-              "skipped": []}
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
+    result = header("gpu", argv, variant="quick" if args.quick else None)
+    result["machine"]["device_count"] = jax.device_count()
+    result["settings"] = {"plan": plan, "quick": args.quick, "groups": args.cases}
+    result["rows"] = []
+    result["summary"] = {"skipped": [], "total_s": 0.0}
+    out = None
 
     def record(name, fn):
+        nonlocal out
         if not set(name.split()[:2]) & set(args.cases):
             return
         if time.perf_counter() - start > args.budget:
-            result["skipped"].append(name)
+            result["summary"]["skipped"].append(name)
             print(f"skipped {name} (budget)", flush=True)
         else:
             try:
@@ -266,10 +241,11 @@ def main(argv=None) -> int:
             except Exception as error:  # one failed case must not lose the others
                 row = {"case": name, "error": repr(error)[:500]}
             row["elapsed_s"] = time.perf_counter() - start
-            result["cases"].append(row)
+            result["rows"].append(row)
             print(json.dumps(row), flush=True)
-        result["total_s"] = time.perf_counter() - start
-        out.write_text(json.dumps(result, indent=2))
+        result["summary"]["total_s"] = time.perf_counter() - start
+        if result["rows"]:  # after each case: a run cut short keeps what it measured
+            out = write_results(result, args.out)
 
     repeats = plan["repeats"]
     for kind in ("hertz", "rough"):
@@ -295,9 +271,10 @@ def main(argv=None) -> int:
     record("sweep", lambda: sweep_case(*plan["sweep"]))
     coupled("sliding", "float64")
     coupled("sliding", "float32")
-    errors = [c for c in result["cases"] if "error" in c]
-    print(f"done in {result['total_s']:.1f} s: {len(result['cases'])} cases, "
-          f"{len(errors)} errors, {len(result['skipped'])} skipped -> {out}")
+    errors = [c for c in result["rows"] if "error" in c]
+    print(f"done in {result['summary']['total_s']:.1f} s: {len(result['rows'])} "
+          f"cases, {len(errors)} errors, {len(result['summary']['skipped'])} skipped "
+          f"-> {out}")
     return 1 if errors else 0
 
 

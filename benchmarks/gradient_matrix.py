@@ -42,20 +42,19 @@ Usage::
     python benchmarks/gradient_matrix.py --only zener     # names containing "zener"
     python benchmarks/gradient_matrix.py --case NAME      # one case
 
-Results: `benchmarks/results/gradient_matrix.json` (or `--out`), a table on stdout.
+Results: `benchmarks/results/gradient_matrix/<machine>.json` (`--slice default`:
+`<machine>_default.json`, `--only` or `--case`: `<machine>_selection.json`; or `--out`;
+layout: `results/SCHEMA.md`: a row per case, the verdicts counted in `summary`), a
+table on stdout.
 """
 
 import argparse
 import dataclasses
-import json
 import math
 import os
-import platform
-import subprocess
 import sys
 import time
 import traceback
-from pathlib import Path
 
 import jax
 
@@ -63,6 +62,7 @@ import jax
 jax.config.update("jax_enable_x64", True)
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
+from _common import header, write_results  # noqa: E402
 
 import jaxcontact as jc  # noqa: E402
 
@@ -493,19 +493,6 @@ def quick_slice() -> list[Case]:
     return [c for c in default_slice() if c.name in QUICK]
 
 
-def _machine():
-    try:
-        cpu = next(line.split(":", 1)[1].strip() for line in open("/proc/cpuinfo")
-                   if line.startswith("model name"))
-    except (OSError, StopIteration):
-        cpu = platform.processor()
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"],
-                            capture_output=True, text=True,
-                            cwd=Path(__file__).parent).stdout.strip()
-    return dict(cpu=cpu, cores=os.cpu_count(), jax=jax.__version__, commit=commit,
-                python=platform.python_version())
-
-
 def table(rows) -> str:
     lines = ["| case | status | gradient | central difference | error | s |",
              "|---|---|---|---|---|---|"]
@@ -540,8 +527,11 @@ def main(argv=None):
     if args.only:  # comma-separated parts of names
         parts = args.only.split(",")
         cases = [c for c in cases if any(part in c.name for part in parts)]
-    out = Path(args.out) if args.out else (
-        Path(__file__).parent / "results" / "gradient_matrix.json")
+    variant = ("selection" if args.case or args.only
+               else None if args.slice == "all" else args.slice)
+    record = header("gradient_matrix", argv, variant)
+    record["settings"] = dict(grid=N, steps=NT, dtype="float64", slice=args.slice,
+                              forward_rtol=RTOL, h_relative=1e-5)
     rows = []
     for i, case in enumerate(cases):
         rows.append(check(case))
@@ -552,12 +542,8 @@ def main(argv=None):
               file=sys.stderr, flush=True)
         counts = {s: sum(x["status"] == s for x in rows)
                   for s in ("right", "kink", "refused", "wrong")}
-        result = dict(benchmark="gradient_matrix", machine=_machine(),
-                      settings=dict(grid=N, steps=NT, dtype="float64", slice=args.slice,
-                                    forward_rtol=RTOL, h_relative=1e-5),
-                      counts=counts, rows=rows)
-        out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_text(json.dumps(result, indent=1))
+        write_results({**record, "rows": rows, "summary": {"counts": counts}},
+                      args.out)
     print(table(rows))
     print(counts)
     return 0 if counts["wrong"] == 0 else 1

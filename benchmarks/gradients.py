@@ -24,23 +24,23 @@ Usage::
     python benchmarks/gradients.py --n 64 --nt 40
     python benchmarks/gradients.py --n 64 --nt 50 \
         --kinds normal,slip,coupled_x,coupled \
-        --controls force,displacement --out benchmarks/results/gradients_64.json
+        --controls force,displacement
 
-Results go to `benchmarks/results/gradients.json`.
+Results go to `benchmarks/results/gradients/<machine>_<n>.json` (`--variant`, `--out`;
+layout: `results/SCHEMA.md`): a row per kind and control.
 """
 
 import argparse
 import json
 import os
-import platform
 import time
-from pathlib import Path
 
 import jax
 
 
 jax.config.update("jax_enable_x64", True)
 import jax.numpy as jnp  # noqa: E402
+from _common import header, write_results  # noqa: E402
 
 import jaxcontact as jc  # noqa: E402
 
@@ -140,8 +140,10 @@ def main():
     parser.add_argument("--kinds", default="normal,slip")
     parser.add_argument("--controls", default="force",
                         help="normal control(s): force, displacement or both")
-    parser.add_argument("--out", default=str(Path(__file__).parent / "results"
-                                             / "gradients.json"))
+    parser.add_argument("--variant", default=None,
+                        help="the file's name after the machine's (default: --n)")
+    parser.add_argument("--out", default=None,
+                        help="JSON path (default results/gradients/<machine>_<n>.json)")
     args = parser.parse_args()
     load_before = os.getloadavg()
     cases = []
@@ -152,18 +154,13 @@ def main():
         print("  memory forward", case["memory_forward"], "gradient",
               case["memory_gradient"])
         cases.append(case)
-    result = {
-        "machine": {"platform": platform.platform(), "processor": platform.processor(),
-                    "cpu_count": os.cpu_count(), "jax": jax.__version__,
-                    "device": str(jax.devices()[0]),
-                    "load_average_before": load_before,
-                    "load_average_after": os.getloadavg()},
-        "dtype": "float64", "rtol": 1e-8,
-        "cases": cases,
-    }
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps(result, indent=2))
-    print("wrote", args.out)
+    result = header("gradients", variant=args.variant or str(args.n))
+    result["machine"]["load_average_before"] = load_before
+    result["settings"] = {"dtype": "float64", "rtol": 1e-8, "n": args.n,
+                          "nt": args.nt, "repeats": args.repeats,
+                          "kinds": args.kinds, "controls": args.controls}
+    result["rows"] = cases
+    print("wrote", write_results(result, args.out))
 
 
 if __name__ == "__main__":

@@ -24,14 +24,14 @@ Usage::
     python benchmarks/hertz.py --quick --plot       # n = 64, 128, 256 (< 1 min)
     python benchmarks/hertz.py --dtypes float64 float32 --rtol 1e-10
 
-Results go to `benchmarks/results/hertz/hertz.json` (`--out`; `results/SCHEMA.md`);
+Results go to `benchmarks/results/hertz/<machine>.json` (`--quick`:
+`<machine>_quick.json`; `--out`; layout: `results/SCHEMA.md`), a row per n and dtype;
 `--plot` also writes a PNG (time against peak-pressure error, log-log) next to it.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import statistics
 import sys
@@ -61,7 +61,7 @@ from _common import (  # noqa: E402
     convolution_times,
     header,
     machine_info,
-    results_path,
+    write_results,
 )
 
 import jaxcontact as jc  # noqa: E402
@@ -355,9 +355,8 @@ def parse_args(argv=None):
     ap.add_argument("--repeats", type=int, default=5,
                     help="timed calls per case, the median is reported "
                          "(default %(default)s)")
-    ap.add_argument("--out", type=Path,
-                    default=results_path("hertz"),
-                    help="JSON output path (default %(default)s)")
+    ap.add_argument("--out", type=Path, default=None,
+                    help="JSON output path (default results/hertz/<machine>.json)")
     ap.add_argument("--plot", action="store_true",
                     help="also write a PNG (time vs peak-pressure error) next to the "
                          "JSON")
@@ -411,7 +410,7 @@ def main(argv=None) -> int:
 
     exponents = growth_exponents(rows)
     result = {
-        **header("hertz", argv),
+        **header("hertz", argv, variant="quick" if args.quick else None),
         "settings": {
             "sizes": args.sizes,
             "dtypes": args.dtypes,
@@ -423,9 +422,9 @@ def main(argv=None) -> int:
             "problem": problem,
         },
         "notes": notes,
-        "summary": {"iteration_growth_exponent": exponents},
+        "summary": {"iteration_growth_exponent": exponents,
+                    "total_time_s": time.perf_counter() - t_start},
         "rows": rows,
-        "total_time_s": time.perf_counter() - t_start,
     }
 
     print()
@@ -438,11 +437,10 @@ def main(argv=None) -> int:
     for note in notes:
         print("NOTE:", note)
 
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=1) + "\n")
-    print(f"wrote {args.out}")
+    path = write_results(result, args.out)
+    print(f"wrote {path}")
     if args.plot:
-        png = args.out.with_suffix(".png")
+        png = path.with_suffix(".png")
         plot(rows, png)
         print(f"wrote {png}")
     print(f"total {time.perf_counter() - t_start:.1f} s")

@@ -33,15 +33,16 @@ Usage::
     python benchmarks/joint_robustness.py --quick    # one-step "full" cases only
     python benchmarks/joint_robustness.py --viscoelastic   # + 63 viscoelastic, ~2 min
 
-Results go to `benchmarks/results/joint_robustness/joint_robustness.json`
-(`results/SCHEMA.md`): a row per case, its group (`elastic`, `viscoelastic`), its
+Results go to `benchmarks/results/joint_robustness/<machine>.json` (with `--quick`, or
+without the viscoelastic or the elastic scenes: `<machine>_quick.json`,
+`<machine>_elastic.json`, `<machine>_viscoelastic.json`; layout: `results/SCHEMA.md`):
+a row per case, its group (`elastic`, `viscoelastic`), its
 parameters, the iterations per step, `converged`, `fallback` (a step above
 `max_steps`), the final stick ratio and the wall time (including compilation: not a
 timing benchmark); `summary` per group.
 """
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -59,7 +60,7 @@ import jaxcontact as jc  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
-from _common import header, results_path  # noqa: E402
+from _common import header, write_results  # noqa: E402
 
 
 R, W, G = 10e-3, 0.15, 1e6
@@ -196,8 +197,14 @@ def main():
     parser.add_argument("--viscoelastic", action="store_true",
                         help="also the 63 viscoelastic scenes")
     parser.add_argument("--viscoelastic-only", action="store_true")
-    parser.add_argument("--out", default=str(results_path("joint_robustness")))
+    parser.add_argument("--out", default=None, help="JSON path (default "
+                        "results/joint_robustness/<machine>.json)")
     args = parser.parse_args()
+    both = args.viscoelastic and not args.viscoelastic_only
+    variant = "_".join(
+        (["quick"] if args.quick else [])
+        + ([] if both else ["viscoelastic" if args.viscoelastic_only else "elastic"])
+    ) or None
     rows = []
     for case in ([] if args.viscoelastic_only else cases(args.n, args.quick)):
         row = run_case(*case)
@@ -223,12 +230,11 @@ def main():
     print(summary, visco_summary)
     settings = dict(n=args.n, quick=args.quick, viscoelastic=bool(visco),
                     max_steps=MAX_STEPS)
-    out = dict(**header("joint_robustness"), settings=settings,
+    out = dict(**header("joint_robustness", variant=variant), settings=settings,
                summary=dict(elastic=summary, viscoelastic=visco_summary),
                rows=[dict(group="elastic", **r) for r in rows]
                + [dict(group="viscoelastic", **r) for r in visco])
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps(out, indent=1))
+    print(f"wrote {write_results(out, args.out)}")
 
 
 if __name__ == "__main__":

@@ -30,13 +30,14 @@ Usage (needs `pip install "jaxcontact[afm,bench]"`; ~1-2 minutes, mostly our CLI
 
     python benchmarks/nanite_side_by_side.py [--repeats 5] [--keep DIR]
 
-Writes `benchmarks/results/nanite_side_by_side/nanite_side_by_side.json`.
+Writes `benchmarks/results/nanite_side_by_side/<machine>.json` (layout:
+`results/SCHEMA.md`: a row per file, `curve` naming it; nanite's, afmformats' and
+lmfit's versions beside ours).
 """
 
 import argparse
 import json
 import os
-import platform
 import subprocess
 import sys
 import tempfile
@@ -45,6 +46,10 @@ import warnings
 from pathlib import Path
 
 import numpy as np
+
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import header, write_results  # noqa: E402
 
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -210,24 +215,10 @@ def compare(idnt, segment, nan, ours):
     return out
 
 
-def machine():
-    cpu = next((ln.split(":", 1)[1].strip() for ln in open("/proc/cpuinfo")
-                if ln.startswith("model name")), platform.processor())
-    return {"cpu": cpu, "cores": os.cpu_count(), "load_average": os.getloadavg(),
-            "platform": platform.platform(), "python": platform.python_version()}
-
-
-def versions():
+def peer_versions():
     import importlib.metadata as md
 
-    git = ["git", "-C", str(ROOT)]
-    return {"jaxcontact_commit": subprocess.run(git + ["rev-parse", "HEAD"],
-                                                capture_output=True, text=True
-                                                ).stdout.strip(),
-            "jaxcontact_dirty": bool(subprocess.run(
-                git + ["status", "--porcelain", "jaxcontact"], capture_output=True,
-                text=True).stdout.strip()),
-            **{p: md.version(p) for p in ("nanite", "afmformats", "lmfit", "jax")}}
+    return {p: md.version(p) for p in ("nanite", "afmformats", "lmfit")}
 
 
 def main():
@@ -238,7 +229,7 @@ def main():
     import nanite.read
 
     nanite.read.DEFAULT_MODALITY = None  # also creep / relaxation curves
-    rows = {}
+    rows = []
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(args.keep or tmp)
         for name, path in FILES.items():
@@ -248,14 +239,15 @@ def main():
             nan["warnings"] = sorted({f"{w.category.__name__}: {w.message}"
                                       for w in caught})
             ours = run_ours(path, out)
-            rows[name] = {"file": str(path.relative_to(ROOT)), "nanite": nan,
-                          "ours": ours, "comparison": compare(idnt, segment, nan, ours)}
-            print(json.dumps({name: rows[name]["comparison"]}, indent=1), flush=True)
-    result = {
-        "what": __doc__.split("\n\n")[0],
-        "machine": machine(),
-        "versions": versions(),
-        "settings": {"radius_m": RADIUS, "poisson": NU,
+            rows.append({"curve": name, "file": str(path.relative_to(ROOT)),
+                         "nanite": nan, "ours": ours,
+                         "comparison": compare(idnt, segment, nan, ours)})
+            print(json.dumps({name: rows[-1]["comparison"]}, indent=1), flush=True)
+    result = header("nanite_side_by_side")
+    result["versions"].update(peer_versions())
+    result.update({
+        "settings": {"what": __doc__.split("\n\n")[0],
+                     "radius_m": RADIUS, "poisson": NU,
                      "nanite": {"preprocessing": PREPROCESSING, "options": OPTIONS,
                                 "model": LIBRARY[0], "weight_cp_m": LIBRARY[1],
                                 "segment": "the file's approach (afmformats)",
@@ -268,12 +260,8 @@ def main():
                              "viscoelastic contact, approach+hold, analysis "
                              "uncertainty)"},
         "rows": rows,
-    }
-    path = ROOT / "benchmarks" / "results" / "nanite_side_by_side" / (
-        "nanite_side_by_side.json")
-    path.parent.mkdir(exist_ok=True)
-    path.write_text(json.dumps(result, indent=2, default=float))
-    print(f"-> {path}")
+    })
+    print(f"-> {write_results(result)}")
 
 
 if __name__ == "__main__":

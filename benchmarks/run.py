@@ -35,14 +35,15 @@ Usage::
     python benchmarks/run.py --full            # tens of minutes
     python benchmarks/run.py --quick --only hertz peers --no-plot
 
-Results: `benchmarks/results/run/run_{quick,full}.json` and, with matplotlib, PNG plots
-`run_{quick,full}_{hertz,cattaneo,leeradok,scaling}.png` next to it.
+Results: `benchmarks/results/run/<machine>_{quick,full}.json` (layout:
+`results/SCHEMA.md`: rows tagged by `part`, `hertz`, `cattaneo`, `leeradok` or `peers`;
+the peer Python and its probe in `settings.peers`) and, with matplotlib, PNG plots
+`<machine>_{quick,full}_{hertz,cattaneo,leeradok,scaling}.png` next to it.
 """
 
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
 import os
 import resource
@@ -63,9 +64,12 @@ from _common import (  # noqa: E402
     RADIUS,
     SHEAR_MODULUS,
     fft_floor,
-    library_info,
-    machine_info,
+    header,
+    load_results,
+    part_rows,
     results_path,
+    rows_of,
+    write_results,
 )
 
 
@@ -987,14 +991,14 @@ def parse_args(argv=None):
         "--out",
         type=Path,
         default=None,
-        help="JSON path (default benchmarks/results/run/run_{quick,full}.json)",
+        help="JSON path (default benchmarks/results/run/<machine>_{quick,full}.json)",
     )
     ap.add_argument("--no-plot", action="store_true", help="write no PNG")
     ap.add_argument(
         "--merge",
         action="store_true",
         help="keep the parts not run now from the existing JSON at the output path "
-        "(their machine block and date are kept beside them under 'merged')",
+        "(their machine block and date are kept beside them in settings.merged)",
     )
     return ap.parse_args(argv)
 
@@ -1006,10 +1010,11 @@ def main(argv=None) -> int:
     mode = "full" if args.full else "quick"
     cfg = MODES[mode]
     parts = args.only or ["hertz", "cattaneo", "leeradok", "peers"]
-    out_path = args.out or results_path("run", f"run_{mode}")
     threads = args.peer_threads or ("both" if mode == "full" else "default")
     t0 = time.perf_counter()
-    machine = machine_info()  # imports jax (in the parent only)
+    record = header("run", argv, variant=mode)  # imports jax (in the parent only)
+    out_path = Path(args.out or results_path("run", mode, record["machine"]["name"]))
+    machine = record["machine"]
     machine["load_average_before"] = _loadavg()
     log = lambda msg: print(msg, flush=True)  # noqa: E731
     log(
@@ -1017,17 +1022,8 @@ def main(argv=None) -> int:
         f"usable CPUs), load {machine['load_average_before']}"
     )
     out = {
-        "benchmark": "run",
-        "mode": mode,
-        "date": datetime.datetime.now(datetime.UTC).isoformat(
-            timespec="seconds"
-        ),
-        "command": " ".join(
-            [Path(sys.argv[0]).name, *(sys.argv[1:] if argv is None else argv)]
-        ),
+        **record,
         "settings": {**cfg, "parts": parts, "match": MATCH, "peer_threads": threads},
-        "machine": machine,
-        "library": library_info(),
         "memory_method": (
             "peak resident set size (resource.getrusage(RUSAGE_SELF).ru_maxrss, KiB on "
             "Linux, reported in MiB) of the subprocess that ran the case, which "
@@ -1146,20 +1142,17 @@ def main(argv=None) -> int:
                     )
     out["machine"]["load_average_after"] = _loadavg()
     if args.merge and out_path.exists():
-        prev = json.loads(out_path.read_text())
+        prev = sections(load_results(out_path))
         kept = [k for k in ("hertz", "cattaneo", "leeradok", "peers")
                 if k in prev and k not in parts]
         for k in kept:
             out[k] = prev[k]
-        out["merged"] = {"parts": kept, "date": prev.get("date"),
-                         "command": prev.get("command"), "machine": prev.get("machine"),
-                         "library": prev.get("library"),
-                         "total_time_s": prev.get("total_time_s")}
+        out["merged"] = {"parts": kept, **{k: prev["record"][k] for k in (
+            "date", "command", "machine", "commit", "dirty", "versions")},
+            "total_time_s": prev["record"]["summary"].get("total_time_s")}
     out["summary"] = summarise(out)
     out["total_time_s"] = time.perf_counter() - t0
-    out_path.parent.mkdir(parents=True, exist_ok=True)
-    out_path.write_text(json.dumps(out, indent=1) + "\n")
-    log(f"wrote {out_path}")
+    log(f"wrote {write_results(to_record(out), out_path)}")
     if not args.no_plot:
         for p in plot_all(out, out_path.with_suffix("")):
             log(f"wrote {p}")
@@ -1169,6 +1162,39 @@ def main(argv=None) -> int:
         f"{machine['load_average_before']}, after {machine['load_average_after']}"
     )
     return 0
+
+
+def to_record(out: dict) -> dict:
+    """The results file (`results/SCHEMA.md`) of `main`'s `out`: its parts as rows
+    tagged `part`; the methods, the peer Python and a merge in `settings`."""
+    keys = ("benchmark", "variant", "date", "command", "machine", "commit", "dirty",
+            "versions")
+    record = {k: out[k] for k in keys}
+    settings = {**out["settings"], "memory_method": out["memory_method"],
+                "timing_method": out["timing_method"]}
+    rows = []
+    for part in ("hertz", "cattaneo", "leeradok"):
+        rows += part_rows(part, out.get(part, []))
+    if "peers" in out:
+        settings["peers"] = {k: v for k, v in out["peers"].items() if k != "results"}
+        rows += part_rows("peers", out["peers"]["results"])
+    if "merged" in out:
+        settings["merged"] = out["merged"]
+    summary = {**out["summary"], "total_time_s": out["total_time_s"]}
+    return {**record, "settings": settings, "rows": rows, "summary": summary}
+
+
+def sections(record: dict) -> dict:
+    """The parts of a results file written by `to_record`, as `main` holds them
+    (and the record itself under `"record"`)."""
+    parts = {row["part"] for row in record["rows"]}
+    out = {p: rows_of(record, p) for p in ("hertz", "cattaneo", "leeradok")
+           if p in parts}
+    if "peers" in parts or "peers" in record["settings"]:
+        out["peers"] = {**record["settings"].get("peers", {}),
+                        "results": rows_of(record, "peers")}
+    out["record"] = record
+    return out
 
 
 def print_summary(out, log=print):

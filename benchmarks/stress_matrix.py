@@ -15,8 +15,9 @@ Usage::
     python benchmarks/stress_matrix.py             # every group
     python benchmarks/stress_matrix.py --groups units friction
 
-Results: `benchmarks/results/stress_matrix/stress_matrix.json` (`results/SCHEMA.md`);
-`--table` prints the Markdown table of the cells from it.
+Results: `benchmarks/results/stress_matrix/<machine>.json` (some `--groups` only:
+`<machine>_<groups>.json`; layout: `results/SCHEMA.md`), a row per cell; `--table`
+prints the Markdown table of the cells from it.
 """
 
 import argparse
@@ -39,11 +40,15 @@ import jaxcontact as jc  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
-from _common import header, results_path  # noqa: E402
+from _common import (  # noqa: E402
+    header,
+    load_results,
+    results_path,
+    write_results,
+)
 
 
-OUT = results_path("stress_matrix")
-
+GROUPS = ("material", "steps", "load", "units", "friction", "surface")
 R, W, G, NU = 10e-3, 0.15, 1.93e6, 0.3  # sphere [m], load [N], modulus [Pa]
 TAU = 0.01  # [s]
 
@@ -213,16 +218,17 @@ def table(data):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--groups", nargs="+", default=[
-        "material", "steps", "load", "units", "friction", "surface"])
-    parser.add_argument("--out", default=str(OUT))
+    parser.add_argument("--groups", nargs="+", default=list(GROUPS))
+    parser.add_argument("--out", default=None,
+                        help="JSON path (default results/stress_matrix/<machine>.json)")
     parser.add_argument("--table", action="store_true",
                         help="print the Markdown table of --out and exit")
     args = parser.parse_args()
+    variant = None if set(args.groups) == set(GROUPS) else "_".join(args.groups)
     if args.table:
-        print(table(json.loads(Path(args.out).read_text())))
+        print(table(load_results(args.out or results_path("stress_matrix", variant))))
         return
-    record = header("stress_matrix")
+    record = header("stress_matrix", variant=variant)
     rows = []
     for group, label, scene in cells(args.groups):
         row = dict(group=group, cell=label, **measure(scene))
@@ -231,8 +237,7 @@ def main():
         jax.clear_caches()  # each cell its own programs: bounded memory maps
     record["machine"]["load_average_after"] = os.getloadavg()
     data = dict(**record, settings=dict(groups=args.groups), rows=flag(rows))
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps(data, indent=1))
+    print(f"wrote {write_results(data, args.out)}")
     print(table(data))
 
 

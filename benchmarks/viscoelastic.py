@@ -23,14 +23,14 @@ Usage::
     python benchmarks/viscoelastic.py             # everything
     python benchmarks/viscoelastic.py --parts cd  # some parts, merged into --out
 
-Results: `benchmarks/results/viscoelastic/viscoelastic.json` (`--out`).
+Results: `benchmarks/results/viscoelastic/<machine>.json` (`--quick`:
+`<machine>_quick.json`; `--out`; layout: `results/SCHEMA.md`): rows tagged by `part`
+(`a_lee_radok`, `b_history_paths`, `c_step_cost`, `d_target_scene`, `e_table2`).
 """
 
 from __future__ import annotations
 
 import argparse
-import datetime
-import json
 import os
 import sys
 import time
@@ -50,7 +50,14 @@ ROOT = HERE.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(HERE))
 
-from _common import library_info, machine_info, results_path  # noqa: E402
+from _common import (  # noqa: E402
+    header,
+    load_results,
+    machine_info,
+    part_rows,
+    results_path,
+    write_results,
+)
 
 import jaxcontact as jc  # noqa: E402
 
@@ -420,7 +427,8 @@ def parse_args(argv=None):
         help="small sizes, skip part (e) and n = 256 in (a)",
     )
     parser.add_argument(
-        "--out", type=Path, default=results_path("viscoelastic")
+        "--out", type=Path, default=None,
+        help="JSON path (default results/viscoelastic/<machine>.json)",
     )
     parser.add_argument(
         "--parts",
@@ -444,16 +452,12 @@ def main(argv=None) -> int:
         print(msg, flush=True)
 
     start = time.perf_counter()
+    variant = "quick" if args.quick else None
+    out = args.out or results_path("viscoelastic", variant)
+    record = header("viscoelastic", argv, variant)
+    record["machine"]["load_average_before"] = list(os.getloadavg())
+    record["settings"] = {"quick": args.quick, "parts": args.parts}
     results = {}
-    if args.out.exists() and args.parts != "abcde":
-        results = json.loads(args.out.read_text())  # merge: keep the other parts
-    results.update({
-        "date": datetime.datetime.now().isoformat(timespec="seconds"),
-        "quick": args.quick,
-        "machine": machine,
-        "library": library_info(),
-        "load_average_before": list(os.getloadavg()),
-    })
     parts = set(args.parts)
     quick = args.quick
     if "a" in parts:
@@ -469,11 +473,19 @@ def main(argv=None) -> int:
         results["d_target_scene"] = part_d(log)
     if "e" in parts and not quick:
         results["e_table2"] = part_e(log)
-    results["load_average_after"] = list(os.getloadavg())
-    results["wall_s"] = time.perf_counter() - start
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(results, indent=1) + "\n")
-    print(f"wrote {args.out} ({results['wall_s']:.0f} s)")
+    record["machine"]["load_average_after"] = list(os.getloadavg())
+    record["rows"] = [row for part, value in results.items()
+                      for row in part_rows(part, value)]
+    if out.exists() and args.parts != "abcde":  # merge: keep the other parts' rows
+        previous = load_results(out)
+        kept = [r for r in previous["rows"] if r["part"] not in results]
+        record["rows"] = kept + record["rows"]
+        record["settings"]["merged"] = {
+            "parts": sorted({r["part"] for r in kept}),
+            "date": previous["date"], "commit": previous["commit"]}
+    record["summary"] = {"wall_s": time.perf_counter() - start}
+    path = write_results(record, out)
+    print(f"wrote {path} ({record['summary']['wall_s']:.0f} s)")
     return 0
 
 

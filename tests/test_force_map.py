@@ -9,7 +9,7 @@ stage positions 78 nm apart), ~0.1 nN, 50-60 nm deep, 12-15 raw samples in conta
 the approach (10.7 kHz), no hold. It is fitted here at tiny settings (8^2 grid, 8
 approach bins, one arm, no analysis refits, no grid check) so that each test runs in
 seconds once the first fit has compiled; the defaults' numbers are in
-`benchmarks/results/force_map.json`.
+`benchmarks/results/force_map/intel_xeon.json`.
 
 A synthetic 2 x 2 map of the closed-form relaxation curve (tests/test_afm.py) with
 its force scaled cell by cell checks the map's arithmetic: the force is linear in the

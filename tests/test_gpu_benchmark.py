@@ -20,22 +20,22 @@ def test_gpu_benchmark_quick_mode_runs_every_case(tmp_path):
     out = tmp_path / "gpu.json"
     assert gpu.main(["--quick", "--out", str(out)]) == 0
     result = json.loads(out.read_text())
-    assert result["machine"]["platform"] in ("cpu", "gpu", "cuda", "rocm", "tpu")
-    assert result["skipped"] == []
-    kinds = {(c["case"], c.get("scene") or c.get("preset")) for c in result["cases"]}
+    assert result["machine"]["backend"] in ("cpu", "gpu", "cuda", "rocm", "tpu")
+    assert result["summary"]["skipped"] == []
+    kinds = {(c["case"], c.get("scene") or c.get("preset")) for c in result["rows"]}
     assert {("normal", "hertz"), ("normal", "rough"), ("coupled", "lc"),
             ("coupled", "sliding"), ("gradient", "coupled (gradients.py)"),
             ("sweep", "lc")} <= kinds
-    for case in result["cases"]:
+    for case in result["rows"]:
         assert case.get("converged", case.get("all_converged")) is True, case
-    for case in (c for c in result["cases"] if c["case"] == "normal"):
+    for case in (c for c in result["rows"] if c["case"] == "normal"):
         # rtol 1e-6 on the gap; the pressure within 1e-4 of the float64 tight solve
         # (float32 included: its round-off floor is ~1e-6 here)
         assert case["error_vs_float64_tight"] < 1e-4, case
-    grad = next(c for c in result["cases"] if c["case"] == "gradient")
+    grad = next(c for c in result["rows"] if c["case"] == "gradient")
     assert grad["gradient_finite"]
-    sweep = next(c for c in result["cases"] if c["case"] == "sweep")
+    sweep = next(c for c in result["rows"] if c["case"] == "sweep")
     # the batched solve equals the loop of single solves to round-off (forces ~0.02 N)
     assert sweep["max_tangential_force_difference_N"] < 1e-12
-    sliding = [c for c in result["cases"] if c.get("preset") == "sliding"]
+    sliding = [c for c in result["rows"] if c.get("preset") == "sliding"]
     assert all(c["stick_ratio_last"] == 0 for c in sliding)  # gross sliding reached
