@@ -4,6 +4,7 @@ A rigid indenter against a linear (visco)elastic half-space, by influence
 coefficients, DC-FFT and conjugate-gradient contact solvers.
 """
 
+from . import _version
 from . import presets as presets
 from ._afm import AFMCurve as AFMCurve
 from ._afm import read_afm as read_afm
@@ -13,7 +14,12 @@ from ._cache import enable_compilation_cache as enable_compilation_cache
 from ._dataset import load as load
 from ._force_map import fit_force_map as fit_force_map
 from ._grid import Grid as Grid
+from ._indenter import AbstractAxisymmetricIndenter as AbstractAxisymmetricIndenter
 from ._indenter import AbstractIndenter as AbstractIndenter
+from ._indenter import AxisymmetricProfile as AxisymmetricProfile
+from ._indenter import BluntedCone as BluntedCone
+from ._indenter import Cone as Cone
+from ._indenter import Pyramid as Pyramid
 from ._indenter import Sphere as Sphere
 from ._indenter import Surface as Surface
 from ._influence import influence_coefficients as influence_coefficients
@@ -58,13 +64,15 @@ from .fitting.options import FitOptions as FitOptions
 from .fitting.result import PronyFit as PronyFit
 
 
-__version__ = "0.1.0"
+__version__ = _version.__version__
 
 # The public API (what the documentation's API reference lists; tests/test_docs.py
 # checks that it names every public re-export above and nothing else).
 __all__ = [
     # Scenes and solving
     "Grid", "Sphere", "Surface", "AbstractIndenter", "Force", "Displacement",
+    "Cone", "BluntedCone", "Pyramid", "AxisymmetricProfile",
+    "AbstractAxisymmetricIndenter",
     "Scene", "solve", "Solution", "RESULTS", "sweep",
     "solve_normal", "NormalSolution", "HalfSpace", "influence_coefficients",
     "subsurface_stress", "Stress", "surface_displacement", "load",

@@ -65,7 +65,7 @@ SEGMENT_NAMES = ("approach", "hold", "retract")
 _TRAVEL_FRACTION = 0.1  # a segment moving less than this share of the range is a hold
 
 
-def _afmformats():
+def import_afmformats():
     try:
         import afmformats
     except ImportError as exc:  # pragma: no cover - depends on the environment
@@ -433,7 +433,7 @@ def read_afm(source, *, index=0, contact_index=None, baseline="constant",
         path = os.fspath(source)
         if not os.path.exists(path):
             raise ValueError(f"no such file: {path!r}")
-        afm = _afmformats()
+        afm = import_afmformats()
         try:
             curves = afm.load_data(path)
         except Exception as exc:

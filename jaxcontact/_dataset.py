@@ -189,10 +189,10 @@ def versions() -> dict:
     import jax
     import jaxlib
 
-    import jaxcontact
+    from ._version import __version__
 
     out = {
-        "jaxcontact": jaxcontact.__version__,
+        "jaxcontact": __version__,
         "jax": jax.__version__,
         "jaxlib": jaxlib.__version__,
         "equinox": equinox.__version__,

@@ -30,7 +30,7 @@ import warnings
 
 import numpy as np
 
-from ._afm import _afmformats, read_afm
+from ._afm import import_afmformats, read_afm
 
 
 # Per-cell variables of the returned Dataset, their units and meaning.
@@ -63,7 +63,7 @@ def _load(source):
         path = os.fspath(source)
         if not os.path.exists(path):
             raise ValueError(f"no such file: {path!r}")
-        afm = _afmformats()
+        afm = import_afmformats()
         missing = getattr(getattr(afm, "errors", None), "MissingMetaDataError",
                           Exception)  # a BaseException in afmformats 0.18
         try:
@@ -95,9 +95,9 @@ def portable(curve):
 def _jax_settings() -> dict:
     """This process's JAX settings that a Dask worker copies (x64, compilation
     cache)."""
-    from ._sweep_dask import _worker_settings
+    from ._sweep_dask import worker_settings
 
-    return _worker_settings()
+    return worker_settings()
 
 
 def fit_cell(curve, settings, jax_settings=None) -> dict:
@@ -109,9 +109,9 @@ def fit_cell(curve, settings, jax_settings=None) -> dict:
     `ValueError`'s text (None if it did not), "warnings": [texts], "seconds": wall
     time [s]}`."""
     if jax_settings:
-        from ._sweep_dask import _apply_settings
+        from ._sweep_dask import apply_settings
 
-        _apply_settings(jax_settings)
+        apply_settings(jax_settings)
     from .fitting.afm import fit_afm_curve
 
     start = time.perf_counter()

@@ -26,12 +26,16 @@ Schemes (all carry the traction of the previous step):
 - `DirectHistory`: any `J(t)` (`material.creep`), piecewise-constant scheme, the
   O(Nt^2) sum over a buffer of all past increments. Used when a material has no
   exponential series, and as the reference for the recursion.
+
+`history_for` picks the scheme of a material.
 """
 
 from typing import NamedTuple
 
 import jax.numpy as jnp
 import numpy as np
+
+from ._material.elastic import Elastic
 
 
 class StepHistory(NamedTuple):
@@ -116,6 +120,20 @@ class DirectHistory:
 
     def update(self, buffer, tau_prev, tau_new, k, dt):
         return buffer.at[k].set(tau_new - tau_prev)
+
+
+def history_for(material, times, history: str, scheme: str):
+    """Pick the history scheme from the material: `ElasticHistory` for an
+    `Elastic` one, `DirectHistory` for `history="direct"` or a material without a
+    creep series, `RecursiveHistory` otherwise (`scheme`: "constant" or "linear")."""
+    if isinstance(material, Elastic):
+        return ElasticHistory(material.instantaneous_compliance)
+    series = getattr(material, "creep_series", None)
+    if history == "direct" or series is None:
+        if scheme == "linear":
+            raise ValueError('scheme="linear" needs a material with a creep series')
+        return DirectHistory(material.creep, times)
+    return RecursiveHistory(series(), scheme)
 
 
 def constant_scheme_amplification(series, dt: float) -> float:

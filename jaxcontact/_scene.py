@@ -149,7 +149,7 @@ def check_times_in_dtype(times, dtype):
         )
 
 
-def _check_finite_in_dtype(name, value, dtype):
+def check_finite_in_dtype(name, value, dtype):
     """A concrete floating array that stays finite once cast to `dtype`."""
     if value is None or callable(value) or _validate.is_traced(value):
         return
@@ -386,9 +386,9 @@ class Scene(eqx.Module):
             ("friction", self.friction),
             ("grid size", grid.size),
         ):
-            _check_finite_in_dtype(name, leaf, dtype)
+            check_finite_in_dtype(name, leaf, dtype)
         for leaf in jax.tree_util.tree_leaves(self.indenter):
-            _check_finite_in_dtype("indenter", leaf, dtype)
+            check_finite_in_dtype("indenter", leaf, dtype)
         check_in_dtype(material, dtype, times[-1] - times[0])
         estimate = expected_contact_radius(
             self.indenter, grid, material, times, self.normal, normal_values

@@ -4,6 +4,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
+from ._dataset import solution_dataset
 from ._results import RESULTS as RESULTS
 
 
@@ -104,8 +105,6 @@ class Solution(eqx.Module):
         Booleans stay `bool` in memory; in a netCDF file xarray stores them as int8
         and `jc.load` / `xarray.open_dataset` decode them back.
         """
-        from ._dataset import solution_dataset
-
         return solution_dataset(self, scene, units=units, solve_options=solve_options,
                                 batch=batch, attrs=attrs)
 

@@ -10,12 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import _validate
-from ._history import (
-    DirectHistory,
-    ElasticHistory,
-    RecursiveHistory,
-    constant_scheme_amplification,
-)
+from ._history import constant_scheme_amplification, history_for
 from ._loading import Force
 from ._material.elastic import Elastic
 from ._operator import HalfSpace
@@ -68,26 +63,14 @@ def robust_solver(controls: _Controls, **options) -> AbstractStepSolver | None:
     return Fallback(solver, LoadByDisplacement(joint))
 
 
-def _operator_for(scene: Scene, nd: int) -> HalfSpace:
+def operator_for(scene: Scene, nd: int) -> HalfSpace:
     if nd == 0:
         return HalfSpace(scene.grid, "normal")
     coupling = scene.coupling
     return HalfSpace(scene.grid, coupling, tangential_y=nd == 2)
 
 
-def _history_for(material, times, history: str, scheme: str):
-    """Pick the history scheme from the material (see `_history`)."""
-    if isinstance(material, Elastic):
-        return ElasticHistory(material.instantaneous_compliance)
-    series = getattr(material, "creep_series", None)
-    if history == "direct" or series is None:
-        if scheme == "linear":
-            raise ValueError('scheme="linear" needs a material with a creep series')
-        return DirectHistory(material.creep, times)
-    return RecursiveHistory(series(), scheme)
-
-
-def _history_displacement(operator, poisson, traction, nd):
+def history_displacement(operator, poisson, traction, nd):
     """`K1 traction` for the history traction `(q_x, q_y, p)` (unit modulus)."""
     if nd == 0:
         uz = operator.apply_normal(traction[2], poisson)
@@ -131,7 +114,7 @@ def _solve(scene: Scene, operator: HalfSpace, controls: _Controls,
     t_targets, _ = tangential_targets(scene, nd)
     t_targets = t_targets.astype(dtype)
     use_total_slip = scene.slip == "total"
-    hereditary = _history_for(material, times, history_kind, scheme)
+    hereditary = history_for(material, times, history_kind, scheme)
     steps_dt = jnp.concatenate([jnp.zeros((1,), dtype), jnp.diff(times)])
     if controls.coupled and nd > 0:
         # The joint solver's layout, built once here rather than in every step.
@@ -146,7 +129,7 @@ def _solve(scene: Scene, operator: HalfSpace, controls: _Controls,
         if prepared.traction is None:
             history = jnp.zeros((3, nx, ny), dtype)
         else:
-            history = _history_displacement(operator, poisson, prepared.traction, nd)
+            history = history_displacement(operator, poisson, prepared.traction, nd)
         # Warm start: linear extrapolation of the last two steps (exact for a
         # solution that changes linearly along the path), clipped to p >= 0.
         have_two = jnp.sum(p_prev2) > 0
@@ -230,7 +213,7 @@ def _raise_on_failure(sol: Solution) -> Solution:
     return sol
 
 
-def _warn_unstable_steps(material, times):
+def warn_unstable_steps(material, times):
     """`jc.TimeStepWarning` when a step makes the piecewise-constant scheme unstable
     (`_history.constant_scheme_amplification` > 1). Concrete inputs with a creep
     series only: nothing is checked inside a transformation."""
@@ -346,7 +329,7 @@ def solve(
     if rtol is not None:
         _validate.tolerance("rtol", rtol)
     if scheme == "constant":
-        _warn_unstable_steps(scene.material, scene.times)
+        warn_unstable_steps(scene.material, scene.times)
     if operator is not None:
         if not isinstance(operator, HalfSpace):
             raise TypeError(f"operator must be a jc.HalfSpace, got {operator!r}")
@@ -384,7 +367,7 @@ def solve(
         solver = default_solver(controls, **defaults)
         retry = robust_solver(controls, **defaults)
     if operator is None:
-        operator = _operator_for(scene, nd)
+        operator = operator_for(scene, nd)
     if progress is True:
         progress = _print_progress
     elif progress is False:

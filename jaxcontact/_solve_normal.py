@@ -17,7 +17,7 @@ from ._material.base import AbstractMaterial, check_in_dtype
 from ._operator import HalfSpace
 from ._results import RESULTS
 from ._scene import (
-    _check_finite_in_dtype,
+    check_finite_in_dtype,
     expected_contact_radius,
     expected_surface_contact,
     warn_if_surface_too_large,
@@ -322,7 +322,7 @@ def solve_normal(
     if not _validate.is_traced((target, material, grid.size)):
         # As in `jc.Scene`: checked in the dtype the solve uses (the grid's).
         check_in_dtype(material, grid.size.dtype, 0.0)
-        _check_finite_in_dtype("force" if load_control else "approach", target,
+        check_finite_in_dtype("force" if load_control else "approach", target,
                                grid.size.dtype)
         program = Force(target) if load_control else Displacement(target)
         times = jnp.zeros((1,), dtype=target.dtype)  # one instantaneous step: J(0)

@@ -10,8 +10,9 @@ the step's compliance and `H_k` the history traction of the past increments, bot
 the hereditary scheme that `jc.solve` uses (`_history`: none for an elastic material,
 `J_step = 1 / G`; the O(Nt) recursion for a creep series; the direct sum otherwise).
 Because `K1` is linear, `J_step K1 tau_k + K1 H_k` is ONE operator application per
-step. The pieces are those of `_solve` (`_history_for`, `_history_displacement`), so the
-field is the solver's, not a re-derivation of it.
+step. The pieces are those of `jc.solve` (`_history.history_for`,
+`_solve.history_displacement`), so the field is the solver's, not a re-derivation of
+it.
 """
 
 import equinox as eqx
@@ -20,10 +21,11 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from ._history import history_for
 from ._operator import HalfSpace
 from ._scene import Scene
 from ._solution import Solution
-from ._solve import _history_displacement, _history_for
+from ._solve import history_displacement
 
 
 _COUPLINGS = ("none", "x", "full")
@@ -47,7 +49,7 @@ def _displacements(operator, material, times, traction, history, scheme):
     nt = times.shape[0]
     material = _as_dtype(material, dtype)
     poisson = material.poisson
-    hereditary = _history_for(material, times, history, scheme)
+    hereditary = history_for(material, times, history, scheme)
     steps_dt = jnp.concatenate([jnp.zeros((1,), dtype), jnp.diff(times)])
     nd = 0 if operator.coupling == "normal" else 2
 
@@ -58,7 +60,7 @@ def _displacements(operator, material, times, traction, history, scheme):
         combined = prepared.compliance.astype(dtype) * tau_new
         if prepared.traction is not None:
             combined = combined + prepared.traction
-        u = _history_displacement(operator, poisson, combined, nd)
+        u = history_displacement(operator, poisson, combined, nd)
         state = hereditary.update(state, tau_prev, tau_new, k, dt)
         return (tau_new, state), u
 

@@ -11,13 +11,13 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from ._scene import Scene
 from ._solution import Solution
-from ._solve import _operator_for, solve
+from ._solve import operator_for, solve
 
 
 # Fields that may be swept. `grid` (it fixes the operator and the array shapes),
 # `coupling` and `slip` (static: they choose the program) may not.
 _SWEEPABLE = ("indenter", "material", "times", "normal", "x", "y", "friction")
-_AXIS = "batch"
+BATCH_AXIS = "batch"
 
 
 def _getter(path: tuple[str, ...]):
@@ -89,7 +89,7 @@ def _parse(scene: Scene, batched: dict) -> tuple[dict, int]:
     return values, size
 
 
-def _traced_directions(scene: Scene) -> int:
+def traced_directions(scene: Scene) -> int:
     """The tangential directions `jc.solve` picks when the friction is traced (as it is
     inside the sweep, where no concrete zero can switch the tangential solve off)."""
     found = []
@@ -103,7 +103,7 @@ def _traced_directions(scene: Scene) -> int:
     return found[0]
 
 
-def _pad(x, padded: int):
+def pad_batch(x, padded: int):
     """Pad the leading axis to `padded` by repeating the last entry (a valid
     problem)."""
     extra = padded - x.shape[0]
@@ -114,7 +114,7 @@ def _pad(x, padded: int):
 
 @eqx.filter_jit
 def _run(arrays, fixed, dynamic, static, options, mesh):
-    spec = PartitionSpec(_AXIS)
+    spec = PartitionSpec(BATCH_AXIS)
 
     def local(arrays, dynamic):
         scene, operator = eqx.combine(dynamic, static)
@@ -213,17 +213,17 @@ def sweep(scene: Scene, /, *, solve_options: dict | None = None, devices=None,
     # Initial set-up: the operator the traced solve needs, from entry 0.
     first = _replace(scene, jax.tree.map(lambda x: x[0] if eqx.is_array(x) else x,
                                          values))
-    operator = _operator_for(first, _traced_directions(first))
+    operator = operator_for(first, traced_directions(first))
     # Callables (e.g. a jc.Force(lambda t: ...) value) stay static.
     dynamic, static = eqx.partition((scene, operator), eqx.is_array)
 
     # Pad to a multiple of the device count and shard the batch axis.
     n_dev = len(devices)
     padded = math.ceil(size / n_dev) * n_dev
-    mesh = Mesh(np.array(devices), (_AXIS,))
+    mesh = Mesh(np.array(devices), (BATCH_AXIS,))
     arrays, fixed = eqx.partition(values, eqx.is_array)
-    arrays = jax.tree.map(lambda x: _pad(x, padded), arrays)
-    arrays = jax.device_put(arrays, NamedSharding(mesh, PartitionSpec(_AXIS)))
+    arrays = jax.tree.map(lambda x: pad_batch(x, padded), arrays)
+    arrays = jax.device_put(arrays, NamedSharding(mesh, PartitionSpec(BATCH_AXIS)))
     dynamic = jax.device_put(dynamic, NamedSharding(mesh, PartitionSpec()))
     fixed_options = tuple(sorted(options.items()))
 

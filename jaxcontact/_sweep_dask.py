@@ -75,7 +75,7 @@ def _to_jax(tree):
                         tree)
 
 
-def _worker_settings() -> dict:
+def worker_settings() -> dict:
     """The JAX settings a worker copies from this process: `jax_enable_x64` where it
     is on here (a float64 scene stays float64 on the worker), and the persistent
     compilation cache where it is on here."""
@@ -85,7 +85,7 @@ def _worker_settings() -> dict:
     return settings
 
 
-def _apply_settings(settings: dict) -> None:
+def apply_settings(settings: dict) -> None:
     """On the worker, before any array is built: `jax.config.update` each setting
     that differs. x64 is only ever turned on, never off (another task in the same
     worker process may need it). The cache settings take effect before the process's
@@ -111,7 +111,7 @@ def _pad_chunk(tree, start: int, stop: int, length: int):
 def _sweep_chunk(settings, sweep, scene, batched, solve_options):
     """One chunk on a worker: `sweep` (`jc.sweep`, called without a client) of `scene`
     over `batched` (`{keyword: value}`, NumPy leaves); its `jc.Solution`."""
-    _apply_settings(settings)
+    apply_settings(settings)
     return sweep(_to_jax(scene), solve_options=_to_jax(solve_options),
                  **_to_jax(batched))
 
@@ -128,7 +128,7 @@ def sweep_on_client(sweep, scene, values: dict, size: int, options: dict, client
     length = spans[0][1] - spans[0][0]
     scene_np = _to_numpy(scene)
     options_np = _to_numpy(options)
-    settings = _worker_settings()
+    settings = worker_settings()
     token = uuid.uuid4().hex[:12]
     futures = []
     for k, (start, stop) in enumerate(spans):
@@ -150,7 +150,7 @@ def _fit_chunk(settings, fit_prony_batch, data, scene_template, n_terms, weights
                options):
     """One chunk of curves on a worker: `fit_prony_batch` (`jc.fit_prony_batch`,
     called without a client)."""
-    _apply_settings(settings)
+    apply_settings(settings)
     return fit_prony_batch(_to_jax(data), _to_jax(scene_template), n_terms,
                            weights=_to_jax(weights), **_to_jax(options))
 
@@ -164,7 +164,7 @@ def fit_on_client(fit_prony_batch, data: list, scene_template, n_terms: int,
     `jc.FitOptions` among them). **Returns:** the list of `jc.PronyFit`, one per
     curve, in order."""
     spans = _chunks(len(data), chunk_size, client)
-    settings = _worker_settings()
+    settings = worker_settings()
     scene_np, options_np = _to_numpy(scene_template), _to_numpy(options)
     token = uuid.uuid4().hex[:12]
     futures = []

@@ -424,18 +424,18 @@ def test_fit_prony_rejects_data_it_cannot_fit():
 def test_parametrisation_round_trip_and_positivity():
     refs = {"g_ref": jnp.asarray(1e9), "t_ref": jnp.asarray(100.0),
             "poisson": jnp.asarray(NU)}
-    theta = _param._to_theta(pmma(), refs, True, jnp.float64)
-    back = _param._to_material(theta, refs, True)
+    theta = _param.to_theta(pmma(), refs, True, jnp.float64)
+    back = _param.to_material(theta, refs, True)
     np.testing.assert_allclose(params(back), params(pmma()), rtol=1e-14)
     np.testing.assert_allclose(float(back.poisson), NU, rtol=1e-14)
     # Any real theta is a valid material: moduli and times > 0, 0 < nu < 0.5.
     wild = jax.tree.map(lambda x: x + 30.0 * jnp.sign(x - 0.1), theta)
-    m = _param._to_material(wild, refs, True)
+    m = _param.to_material(wild, refs, True)
     assert float(m.g_inf) > 0 and np.all(np.asarray(m.g) > 0)
     assert np.all(np.asarray(m.tau) > 0) and 0 < float(m.poisson) < 0.5
     # Initial times: log-spaced strictly inside [first step, span].
     np.testing.assert_allclose(
-        _start._initial_times(np.array([0.0, 1.0, 10.0, 1000.0]), 3),
+        _start.initial_times(np.array([0.0, 1.0, 10.0, 1000.0]), 3),
         [10 ** 0.75, 10 ** 1.5, 10 ** 2.25], rtol=1e-12)
 
 

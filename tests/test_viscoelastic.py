@@ -58,7 +58,7 @@ from helpers import as_np, check_converged, equivalent_radius, radii, zener
 
 import jaxcontact as jc
 from jaxcontact._history import ElasticHistory, RecursiveHistory
-from jaxcontact._solve import _history_for
+from jaxcontact._history import history_for as _history_for
 
 
 RTOL = 1e-8  # jc.solve's default in float64

@@ -5,7 +5,7 @@ from jaxtyping import Array, ArrayLike, Float
 
 from .. import _validate
 from .base import AbstractMaterial, CreepSeries
-from .prony import _arg, _promote, _scalar
+from .checks import check_arg, check_scalar, promote
 
 
 class Maxwell(AbstractMaterial):
@@ -27,14 +27,13 @@ class Maxwell(AbstractMaterial):
     poisson: Float[Array, ""]
 
     def __init__(self, shear_modulus, viscosity, poisson):
-        shear_modulus = _scalar(
-            "shear_modulus", _arg(_validate.positive, "shear_modulus", shear_modulus)
-        )
-        viscosity = _scalar(
-            "viscosity", _arg(_validate.positive, "viscosity", viscosity))
-        self.shear_modulus, self.viscosity = _promote(shear_modulus, viscosity)
-        self.poisson = _scalar(
-            "poisson", _arg(_validate.poisson_ratio, "poisson", poisson))
+        shear_modulus = check_scalar("shear_modulus", check_arg(
+            _validate.positive, "shear_modulus", shear_modulus))
+        viscosity = check_scalar(
+            "viscosity", check_arg(_validate.positive, "viscosity", viscosity))
+        self.shear_modulus, self.viscosity = promote(shear_modulus, viscosity)
+        self.poisson = check_scalar(
+            "poisson", check_arg(_validate.poisson_ratio, "poisson", poisson))
 
     @property
     def relaxation_time(self) -> Float[Array, ""]:

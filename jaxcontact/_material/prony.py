@@ -35,9 +35,6 @@ first-order dependence on its weight (`g_i / h(r_i)^2`) kept so that gradients a
 pole than rounding resolves).
 """
 
-import contextlib
-
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -46,72 +43,24 @@ from jaxtyping import Array, ArrayLike, Float
 
 from .. import _validate
 from .base import AbstractMaterial, CreepSeries
+from .checks import check_arg, check_scalar, promote, require
 
 
 _ITERATIONS = 100
 
 
-# --------------------------------------------------------------------------------------
-# Validation helpers shared by the viscoelastic materials.
-
-
-def _eager(*values):
-    """Evaluate eagerly when every value is concrete, even while tracing: inside `jit`,
-    operations on concrete arrays are otherwise staged and could not be inspected.
-    Traced values are left to `eqx.error_if` (which must not run eagerly)."""
-    if _validate.is_traced(values):
-        return contextlib.nullcontext()
-    return jax.ensure_compile_time_eval()
-
-
-def _arg(check, name: str, value) -> jax.Array:
-    """Apply one of the `_validate` checks (concrete: ValueError; traced: error_if)."""
-    with _eager(value):
-        return check(name, value)
-
-
-def _require(name: str, value, inputs, ok, what: str, got) -> jax.Array:
-    """Check a condition `ok(*inputs)` that may involve several arguments.
-
-    Concrete inputs: a ValueError naming `name`, with `got()` describing the values.
-    Traced inputs: `eqx.error_if` attached to `value`, so the returned array must be
-    used.
-    """
-    if _validate.is_traced(inputs):
-        return eqx.error_if(value, ~jnp.all(ok(*inputs)), f"{name} must be {what}")
-    with jax.ensure_compile_time_eval():
-        good = bool(np.all(np.asarray(ok(*inputs))))
-    if not good:
-        raise ValueError(f"{name} must be {what}, got {got()}")
-    return value
-
-
-def _scalar(name: str, value: jax.Array) -> jax.Array:
-    if jnp.ndim(value) != 0:
-        raise ValueError(
-            f"{name} must be a scalar, got an array of shape {jnp.shape(value)} "
-            "(batch materials with jax.vmap)"
-        )
-    return value
-
-
-def _promote(*values):
-    dtype = jnp.result_type(*values)
-    with _eager(values):
-        return tuple(v.astype(dtype) for v in values)
-
-
 def _series_arrays(names, values, checks):
     """Validate a scalar and two matching 1-D arrays; promote to one float dtype."""
     n0, n1, n2 = names
-    v0, v1, v2 = (_arg(check, name, v) for check, name, v in zip(checks, names, values))
-    _scalar(n0, v0)
+    v0, v1, v2 = (check_arg(check, name, v)
+                  for check, name, v in zip(checks, names, values))
+    check_scalar(n0, v0)
     if v1.ndim != 1 or v2.ndim != 1 or v1.shape != v2.shape:
         raise ValueError(
             f"{n1} and {n2} must be 1-D arrays of the same length, got {n1}.shape="
             f"{v1.shape} and {n2}.shape={v2.shape}"
         )
-    return _promote(v0, v1, v2)
+    return promote(v0, v1, v2)
 
 
 # Two times closer than this many units of rounding (relative) are the same time.
@@ -131,7 +80,7 @@ def _distinct(name: str, tau: jax.Array) -> jax.Array:
         srt = jnp.sort(tau)
         return srt[1:] - srt[:-1] > rel * srt[1:]
 
-    return _require(
+    return require(
         name,
         tau,
         (tau,),
@@ -349,7 +298,7 @@ class Prony(AbstractMaterial):
             (_validate.non_negative, _validate.non_negative, _validate.positive),
         )
         tau = _distinct("tau", tau)
-        g_inf = _require(
+        g_inf = require(
             "g_inf + sum(g) (the instantaneous modulus G(0))",
             g_inf,
             (g_inf, g),
@@ -360,8 +309,8 @@ class Prony(AbstractMaterial):
         self.g_inf = g_inf
         self.g = g
         self.tau = tau
-        self.poisson = _scalar(
-            "poisson", _arg(_validate.poisson_ratio, "poisson", poisson))
+        self.poisson = check_scalar(
+            "poisson", check_arg(_validate.poisson_ratio, "poisson", poisson))
 
     @classmethod
     def from_creep(cls, j_inf, j, tau, poisson, fluidity=None) -> "Prony":
@@ -392,7 +341,7 @@ class Prony(AbstractMaterial):
             (_validate.finite, _validate.non_negative, _validate.positive),
         )
         tau = _distinct("tau", tau)
-        j_inf = _require(
+        j_inf = require(
             "j_inf - sum(j) (the instantaneous compliance J(0))",
             j_inf,
             (j_inf, j),
@@ -401,10 +350,10 @@ class Prony(AbstractMaterial):
             lambda: f"j_inf={np.asarray(j_inf).item()!r}, j={np.asarray(j)!r}",
         )
         if fluidity is not None:
-            fluidity = _scalar(
-                "fluidity", _arg(_validate.non_negative, "fluidity", fluidity))
-            (fluidity,) = _promote(fluidity.astype(j_inf.dtype))
-        _arg(_validate.poisson_ratio, "poisson", poisson)
+            fluidity = check_scalar(
+                "fluidity", check_arg(_validate.non_negative, "fluidity", fluidity))
+            (fluidity,) = promote(fluidity.astype(j_inf.dtype))
+        check_arg(_validate.poisson_ratio, "poisson", poisson)
         g_inf, g, tau_relax = relaxation_series(j_inf, j, tau, fluidity)
         return cls(g_inf, g, tau_relax, poisson)
 

@@ -6,7 +6,7 @@ from jaxtyping import Array, ArrayLike, Float
 
 from .. import _validate
 from .base import AbstractMaterial, CreepSeries
-from .prony import _arg, _promote, _require, _scalar
+from .checks import check_arg, check_scalar, promote, require
 
 
 class Zener(AbstractMaterial):
@@ -35,11 +35,11 @@ class Zener(AbstractMaterial):
     poisson: Float[Array, ""]
 
     def __init__(self, mu_inf, mu_0, tau, poisson):
-        mu_inf = _scalar("mu_inf", _arg(_validate.positive, "mu_inf", mu_inf))
-        mu_0 = _scalar("mu_0", _arg(_validate.positive, "mu_0", mu_0))
-        tau = _scalar("tau", _arg(_validate.positive, "tau", tau))
-        mu_inf, mu_0, tau = _promote(mu_inf, mu_0, tau)
-        mu_0 = _require(
+        mu_inf = check_scalar("mu_inf", check_arg(_validate.positive, "mu_inf", mu_inf))
+        mu_0 = check_scalar("mu_0", check_arg(_validate.positive, "mu_0", mu_0))
+        tau = check_scalar("tau", check_arg(_validate.positive, "tau", tau))
+        mu_inf, mu_0, tau = promote(mu_inf, mu_0, tau)
+        mu_0 = require(
             "mu_0 (the long-time modulus)",
             mu_0,
             (mu_0, mu_inf),
@@ -51,8 +51,8 @@ class Zener(AbstractMaterial):
         self.mu_inf = mu_inf
         self.mu_0 = mu_0
         self.tau = tau
-        self.poisson = _scalar(
-            "poisson", _arg(_validate.poisson_ratio, "poisson", poisson))
+        self.poisson = check_scalar(
+            "poisson", check_arg(_validate.poisson_ratio, "poisson", poisson))
 
     @property
     def relaxation_time(self) -> Float[Array, ""]:

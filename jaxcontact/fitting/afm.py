@@ -27,7 +27,11 @@ import warnings
 
 import numpy as np
 
+from .data import IndentationData
+from .fit import fit_prony
+from .options import FitOptions
 from .quality import assess, at_bounds, model_curve, raw_residual, youngs_moduli
+from .start import lee_radok_start
 from .uncertainty import analysis_uncertainty
 
 
@@ -275,20 +279,14 @@ class _Problem:
                    float(curve.time[app].max()))
 
     def data(self, force=None, depth=None):
-        import jaxcontact as jc
-
-        return jc.IndentationData(self.times, force=self.force if force is None
-                                  else force, depth=self.depth if depth is None
-                                  else depth)
+        return IndentationData(self.times, force=self.force if force is None
+                               else force, depth=self.depth if depth is None
+                               else depth)
 
     def fit(self, arms, *, init=None, data=None):
         """`jc.fit_prony` of `arms` arms on these bins (or on `data`, same times)."""
         import equinox as eqx
         import jax.numpy as jnp
-
-        import jaxcontact as jc
-
-        from .start import lee_radok_start
 
         data = self.data() if data is None else data
         weights = np.sqrt(self.counts)
@@ -304,9 +302,9 @@ class _Problem:
             lo, hi = self.tau_bounds
             init = eqx.tree_at(lambda m: m.tau, init, jnp.clip(
                 jnp.asarray(init.tau), lo * 1.05, hi / 1.05))
-        return jc.fit_prony(data, self.template, arms, weights=weights, init=init,
-                            bounds=bounds,
-                            options=jc.FitOptions(lm_steps=self.settings.steps))
+        return fit_prony(data, self.template, arms, weights=weights, init=init,
+                         bounds=bounds,
+                         options=FitOptions(lm_steps=self.settings.steps))
 
     def grid_bias(self, fit):
         """`(nt,)` the fitted model's curve on this grid minus on a grid twice as

@@ -1,8 +1,8 @@
 """`jc.fit_prony_batch`: many curves of one shape fitted at once, their
 Levenberg-Marquardt solves one compiled, vmapped program sharded over devices (or, on
 a CPU, one curve after another; or in chunks on a Dask cluster). Each curve's set-up
-and finish are `jc.fit_prony`'s own (`_set_up`, `_fit`), the batched LM result handed
-in as the curve's first LM run."""
+and finish are `jc.fit_prony`'s own (`set_up`, `fit_problem`), the batched LM result
+handed in as the curve's first LM run."""
 
 import dataclasses
 import math
@@ -14,11 +14,11 @@ import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from .._scene import Scene
-from .._sweep import _AXIS, _pad
+from .._sweep import BATCH_AXIS, pad_batch
 from .data import IndentationData
-from .fit import _fit, _set_up, fit_prony
-from .lm import _have_optimistix, _lm_rtol, _lm_solve_batch
-from .options import FitOptions, _with_legacy
+from .fit import fit_problem, fit_prony, set_up
+from .lm import have_optimistix, lm_rtol, lm_solve_batch
+from .options import FitOptions, with_legacy
 
 
 def _stack(trees):
@@ -122,7 +122,7 @@ def fit_prony_batch(data, scene_template: Scene, n_terms: int = 2, *, weights=No
     """
     if "optimiser" in legacy:
         raise ValueError("fit_prony_batch always uses optimiser='lm'")
-    options = _with_legacy(options, legacy, "fit_prony_batch")
+    options = with_legacy(options, legacy, "fit_prony_batch")
     if options.optimiser == "lbfgs":
         raise ValueError("fit_prony_batch always uses optimiser='lm' (a refit "
                          "'auto'), got options.optimiser='lbfgs'")
@@ -164,7 +164,7 @@ def _check_batch(data, weights, inits, vectorize, devices, client):
     data = list(data)
     if not data or not all(isinstance(d, IndentationData) for d in data):
         raise TypeError("data must be a non-empty sequence of jc.IndentationData")
-    if not _have_optimistix():
+    if not have_optimistix():
         raise ImportError('fit_prony_batch needs optimistix: pip install '
                           '"jaxcontact[fit]"')
     sizes = {d.times.shape[0] for d in data}
@@ -206,8 +206,8 @@ def _vectorized(curves, scene_template, n_terms, options: FitOptions, devices):
     for c in curves:
         c = dict(c)
         model = c.pop("_model", None)
-        problems.append(_set_up(scene_template=scene_template, n_terms=n_terms,
-                                options=options, model=model, **c))
+        problems.append(set_up(scene_template=scene_template, n_terms=n_terms,
+                               options=options, model=model, **c))
     dtype = scene_template.grid.size.dtype
 
     # -- One batched LM solve --------------------------------------------------------
@@ -217,22 +217,22 @@ def _vectorized(curves, scene_template, n_terms, options: FitOptions, devices):
     # structure check compares the manual axes' shardings: lineax issue 185), so the
     # batch axis is sharded for XLA's partitioner: the devices step together.
     padded = math.ceil(len(curves) / len(devices)) * len(devices)
-    mesh = Mesh(np.array(devices), (_AXIS,))
-    along = NamedSharding(mesh, PartitionSpec(_AXIS))
+    mesh = Mesh(np.array(devices), (BATCH_AXIS,))
+    along = NamedSharding(mesh, PartitionSpec(BATCH_AXIS))
     same = NamedSharding(mesh, PartitionSpec())
 
     def place(x, axis):
         if axis == 0:
-            return jax.device_put(_pad(x, padded), along)
+            return jax.device_put(pad_batch(x, padded), along)
         return jax.device_put(x, same) if eqx.is_array(x) else x
 
     theta_b = jax.tree.map(lambda x: place(x, 0), theta_b)
     stacked_args = jax.tree.map(place, stacked_args, axes, is_leaf=lambda x: x is None)
-    rtol = _lm_rtol(dtype)
-    new, ok, steps = _lm_solve_batch(theta_b, stacked_args, axes, rtol, 0.1 * rtol,
-                                     options.lm_steps)
+    rtol = lm_rtol(dtype)
+    new, ok, steps = lm_solve_batch(theta_b, stacked_args, axes, rtol, 0.1 * rtol,
+                                    options.lm_steps)
 
     # -- Finish up, curve by curve ---------------------------------------------------
-    return [_fit(p, options, lm_ready=(jax.tree.map(lambda x, i=i: x[i], new), ok[i],
-                                       steps[i]))
+    return [fit_problem(p, options, lm_ready=(jax.tree.map(lambda x, i=i: x[i], new),
+                                              ok[i], steps[i]))
             for i, p in enumerate(problems)]

@@ -9,7 +9,7 @@ truth.) So every parameter sitting at such a boundary is moved back inside
 (`with_probes`, at most `_MAX_RESTARTS` times).
 
 The certificate (`PronyFit.converged`): the Gauss-Newton step at the result promises
-less than a `_GN_TOL` relative decrease of the loss (or a negligible absolute one),
+less than a `GN_TOL` relative decrease of the loss (or a negligible absolute one),
 no parameter at a boundary can lower it, none is left at one, and every contact
 solve converged.
 
@@ -30,21 +30,21 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .model import _Evaluator
-from .parametrisation import _log_scaled, _to_material
+from .model import Evaluator
+from .parametrisation import log_scaled, to_material
 
 
-_GN_TOL = 1e-3  # largest relative loss decrease a Gauss-Newton step may promise
+GN_TOL = 1e-3  # largest relative loss decrease a Gauss-Newton step may promise
 _MAX_RESTARTS = 3  # restarts from boundary probes
 
 
-def _floor(dtype) -> float:
+def decrease_floor(dtype) -> float:
     """The absolute floor of the predicted loss decrease: at an exact fit (noiseless
     data) the residual is round-off and its relative decrease means nothing."""
     return 1e-18 if jnp.finfo(dtype).bits >= 64 else 1e-10
 
 
-def _predicted_decrease(jac, r):
+def predicted_decrease(jac, r):
     """Relative loss decrease `(|r|^2 - |r + J d|^2) / |r|^2` of the Gauss-Newton
     step `d` (least squares, cut-off 1e-10); `inf` where `J` is not finite."""
     if not np.all(np.isfinite(jac)) or not np.all(np.isfinite(r)):
@@ -88,7 +88,7 @@ class _Coordinates:
         return x
 
     def log(self, key):
-        return _log_scaled(self.theta, self.refs, key)
+        return log_scaled(self.theta, self.refs, key)
 
     def shifted(self, key, delta):
         return self.from_x(key, self.log(key) + delta)
@@ -154,7 +154,7 @@ def _probe_trials(theta, free, refs, material, times):
         not bool(jnp.array_equal(t[k], free[k])) for k in free)]
 
 
-def _boundary_probe(ev: _Evaluator, theta, refs, fit_poisson, times):
+def _boundary_probe(ev: Evaluator, theta, refs, fit_poisson, times):
     """`theta` with the parameters that sit at a boundary of the log-parametrisation
     moved back inside, if that lowers the loss by more than 0.1 %; else `None`.
     Boundaries: a modulus below 1e-4 of the instantaneous modulus `g_inf + sum g`;
@@ -163,7 +163,7 @@ def _boundary_probe(ev: _Evaluator, theta, refs, fit_poisson, times):
     revived whole; a parameter with bounds pressed against one is tried at the middle
     of its range (one evaluation each); the best is returned."""
     value = float(ev.loss(theta)[0])
-    material = _to_material(theta, refs, fit_poisson)
+    material = to_material(theta, refs, fit_poisson)
     full = {**refs.get("fixed", {}), **theta}  # trials on all, kept: the free ones
     best, best_value = None, value * (1 - 1e-3)
     for trial in _probe_trials(full, theta, refs, material, times):
@@ -173,7 +173,7 @@ def _boundary_probe(ev: _Evaluator, theta, refs, fit_poisson, times):
     return best
 
 
-def _at_boundary(material, times, refs):
+def at_boundary(material, times, refs):
     """Names of the parameters at a boundary of the log-parametrisation (see
     `_boundary_probe`): a modulus below 1e-4 of the live arms' g0, an (unbounded)
     relaxation time below 1e-2 of the first step or above 1e2 of the span."""
@@ -216,7 +216,7 @@ def with_probes(run, theta, adam_steps, *, ev, refs, fit_poisson, times):
 # Sensitivities and the certificate.
 
 
-def _covariance(rows, factor, sigma_rel):
+def log_covariance(rows, factor, sigma_rel):
     """`(std, cov)` of the log-parameters from the Jacobian `rows` in the optimiser's
     coordinates (`factor`: `d log / d theta` of each column, `inf` for an
     undetermined one); `None` where the Jacobian is not finite."""
@@ -235,20 +235,20 @@ def _covariance(rows, factor, sigma_rel):
     return std, cov
 
 
-def _certify(rows, rel, value, ok, probe, stuck, dtype):
+def certify(rows, rel, value, ok, probe, stuck, dtype):
     """`(converged, note)`: the certificate of a fit with Jacobian `rows`, relative
     residual `rel`, loss `value`, contact solves' flags `ok`, the last boundary probe
     `probe` and the (not fixed) parameters `stuck` at a boundary; `note` is appended
     to the fit's message."""
     # Converged means the Gauss-Newton model at the result predicts no decrease of the
-    # loss worth having (relative decrease < `_GN_TOL`), and no parameter at a boundary
+    # loss worth having (relative decrease < `GN_TOL`), and no parameter at a boundary
     # could lower it (the probes); whichever test of the optimiser stopped it. A fit
     # stopped away from the minimum says so. At an exact fit (noiseless data) the
     # residual is round-off and its relative decrease means nothing: an absolute floor
     # on the predicted decrease of the loss (mean squared relative residual) covers it.
-    predicted = _predicted_decrease(rows, rel)
-    floor = _floor(dtype)
-    small = predicted < _GN_TOL or predicted * float(value) < floor
+    predicted = predicted_decrease(rows, rel)
+    floor = decrease_floor(dtype)
+    small = predicted < GN_TOL or predicted * float(value) < floor
     note = ""
     # A parameter left at a boundary is not an interior minimum the certificate can
     # see (its log's column is ~0): NOT converged, and said why.
@@ -259,6 +259,6 @@ def _certify(rows, rel, value, ok, probe, stuck, dtype):
                  and not stuck)
     verdict = "converged" if converged else "NOT converged"
     note += (f"; Gauss-Newton predicts a further {predicted:.2g} relative decrease "
-             f"of the loss {float(value):.3g} ({verdict}: the bound is {_GN_TOL:g}, "
+             f"of the loss {float(value):.3g} ({verdict}: the bound is {GN_TOL:g}, "
              f"or {floor:g} absolute)")
     return converged, note

@@ -10,7 +10,7 @@ from .._loading import Displacement, Force
 from .._scene import Scene
 
 
-def _series(name: str, value) -> np.ndarray:
+def check_series(name: str, value) -> np.ndarray:
     if isinstance(value, (bool, np.bool_)):
         raise TypeError(f"{name} must be an array of real numbers, got {value!r}")
     try:
@@ -52,7 +52,7 @@ class IndentationData(eqx.Module):
     depth: np.ndarray | None
 
     def __init__(self, times, force=None, depth=None):
-        times = _series("times", times).astype(float)
+        times = check_series("times", times).astype(float)
         if times.shape[0] < 3:
             raise ValueError(f"times needs at least 3 samples, got {times.shape[0]}")
         steps = np.diff(times)
@@ -71,7 +71,7 @@ class IndentationData(eqx.Module):
             if value is None:
                 out[name] = None
                 continue
-            arr = _series(name, value).astype(float)
+            arr = check_series(name, value).astype(float)
             if arr.shape != times.shape:
                 raise ValueError(
                     f"{name} must have one value per time ({times.shape[0]}), "
@@ -99,7 +99,7 @@ def _check_program(name, value, times):
         )
 
 
-def _scene_for(data: IndentationData, template: Scene, dtype):
+def scene_for(data: IndentationData, template: Scene, dtype):
     """The scene on the data's times, its loading taken from the data when given, and
     the kind of curve to fit."""
     times = jnp.asarray(data.times, dtype)

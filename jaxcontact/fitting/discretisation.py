@@ -7,21 +7,21 @@ import equinox as eqx
 import numpy as np
 
 from .._scene import Scene
-from .._solve import _operator_for
-from .._sweep import _traced_directions
-from .data import IndentationData, _scene_for
-from .model import _SceneModel
+from .._solve import operator_for
+from .._sweep import traced_directions
+from .data import IndentationData, scene_for
+from .model import SceneModel
 from .result import PronyFit
 
 
-def _discretisation(scene, material, model, curve):
+def discretisation_rms(scene, material, model, curve):
     """RMS difference [data units] between `curve` (the model on `scene`'s grid) and
     the same model on a grid of twice the cells per side, same size."""
     g = scene.grid
     fine = eqx.tree_at(lambda sc: sc.grid, scene, type(g)(
         shape=tuple(2 * k for k in g.shape), size=g.size, periodic=g.periodic))
     fine_curve, _ = model(material,
-                          (fine, _operator_for(fine, _traced_directions(fine))))
+                          (fine, operator_for(fine, traced_directions(fine))))
     return float(np.sqrt(np.mean((np.asarray(curve) - np.asarray(fine_curve)) ** 2)))
 
 
@@ -32,7 +32,7 @@ def discretisation_error(fit: PronyFit, data: IndentationData, scene_template: S
     width) for the same data and template (`solve_options` as given to the fit;
     the fit's default scheme `"linear"` unless it says otherwise)."""
     dtype = scene_template.grid.size.dtype
-    scene, kind, _ = _scene_for(data, scene_template, dtype)
+    scene, kind, _ = scene_for(data, scene_template, dtype)
     options = {"scheme": "linear", **dict(solve_options or {})}
-    model = _SceneModel(kind, tuple(sorted(options.items())))
-    return _discretisation(scene, fit.material, model, fit.curve)
+    model = SceneModel(kind, tuple(sorted(options.items())))
+    return discretisation_rms(scene, fit.material, model, fit.curve)

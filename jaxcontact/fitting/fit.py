@@ -1,7 +1,7 @@
 """`jc.fit_prony`: fit a Prony series to indentation data by running the full contact
 model (`jc.solve`) and differentiating through it.
 
-The driver: the problem's checks and set-up (`_set_up`: the scene on the data's
+The driver: the problem's checks and set-up (`set_up`: the scene on the data's
 times, the parametrisation's references, the start), the optimiser run
 (`_optimise`: L-BFGS, Levenberg-Marquardt, or `"auto"`: L-BFGS, then LM where its
 result is not certified; each restarted from boundary probes), then the certificate,
@@ -20,39 +20,39 @@ from jax.flatten_util import ravel_pytree
 from .._indenter import Sphere
 from .._material.prony import Prony
 from .._scene import Scene
-from .._solve import _warn_unstable_steps
+from .._solve import warn_unstable_steps
 from .._validate import check_int
 from .certificate import (
-    _GN_TOL,
-    _at_boundary,
-    _certify,
-    _covariance,
-    _floor,
-    _predicted_decrease,
+    GN_TOL,
+    at_boundary,
+    certify,
+    decrease_floor,
+    log_covariance,
+    predicted_decrease,
     with_probes,
 )
-from .data import IndentationData, _scene_for, _series
-from .discretisation import _discretisation
-from .lbfgs import _adam_lbfgs
-from .lm import _have_optimistix, _LMRun
-from .model import _Evaluator, _scene_model
-from .options import FitOptions, _with_legacy
+from .data import IndentationData, check_series, scene_for
+from .discretisation import discretisation_rms
+from .lbfgs import adam_lbfgs
+from .lm import LMRun, have_optimistix
+from .model import Evaluator, scene_model
+from .options import FitOptions, with_legacy
 from .parametrisation import (
-    _bound_factors,
-    _check_bounds,
-    _check_fixed,
-    _make_refs,
-    _to_material,
-    _to_theta,
+    bound_factors,
+    check_bounds,
+    check_fixed,
+    make_refs,
+    to_material,
+    to_theta,
 )
 from .result import (
     PronyFit,
-    _parameter_names,
-    _sorted_by_tau,
-    _sorted_covariance,
-    _sorted_split,
+    parameter_names,
+    sorted_by_tau,
+    sorted_covariance,
+    sorted_split,
 )
-from .start import _initial_guess, _initial_times, lee_radok_start
+from .start import initial_guess, initial_times, lee_radok_start
 
 
 def fit_prony(
@@ -141,12 +141,12 @@ def fit_prony(
     """
     # `_model`: a stand-in `(callable(material, ctx) -> (curve, converged), ctx)` for
     # the contact model (the tests' closed forms; it must reach Dask workers).
-    options = _with_legacy(options, legacy, "fit_prony")
-    problem = _set_up(data, scene_template, n_terms, options, init=init,
-                      poisson=poisson, fit_poisson=fit_poisson, fixed=fixed,
-                      bounds=bounds, weights=weights, noise_std=noise_std,
-                      model=_model)
-    return _fit(problem, options)
+    options = with_legacy(options, legacy, "fit_prony")
+    problem = set_up(data, scene_template, n_terms, options, init=init,
+                     poisson=poisson, fit_poisson=fit_poisson, fixed=fixed,
+                     bounds=bounds, weights=weights, noise_std=noise_std,
+                     model=_model)
+    return fit_problem(problem, options)
 
 
 # --------------------------------------------------------------------------------------
@@ -167,7 +167,7 @@ class _Problem:
     scale: object
     rms_target: object
     refs: dict
-    ev: _Evaluator
+    ev: Evaluator
     model: object
     stand_in: bool  # `_model` given: no contact model (no grid check, no step check)
     init: Prony
@@ -191,7 +191,7 @@ def _check_call(data, scene_template, n_terms, options, noise_std) -> int:
     if not isinstance(scene_template, Scene):
         raise TypeError(f"scene_template must be a jc.Scene, got {scene_template!r}")
     n = check_int("n_terms", n_terms, 1)
-    if options.optimiser == "lm" and not _have_optimistix():
+    if options.optimiser == "lm" and not have_optimistix():
         raise ImportError(
             'optimiser="lm" needs optimistix: pip install "jaxcontact[fit]"')
     if noise_std is not None and not (np.isfinite(noise_std) and noise_std > 0):
@@ -217,7 +217,7 @@ def _residual_scale(target, weights, kind, dtype):
     `scale` holds `rms / w` (weights normalised to a mean square of 1)."""
     rms_target = jnp.sqrt(jnp.mean(target**2))
     if weights is not None:
-        w = _series("weights", weights).astype(float)
+        w = check_series("weights", weights).astype(float)
         if w.shape != target.shape or not np.all(w > 0):
             raise ValueError(f"weights must be {target.shape[0]} numbers > 0 (one per "
                              f"time), got shape {w.shape}, min {w.min()!r}")
@@ -240,14 +240,14 @@ def _check_poisson(poisson, scene_template, fit_poisson):
     return poisson
 
 
-def _set_up(data, scene_template, n_terms, options: FitOptions, *, init, poisson,
-            fit_poisson, fixed, bounds, weights, noise_std, model) -> _Problem:
+def set_up(data, scene_template, n_terms, options: FitOptions, *, init, poisson,
+           fit_poisson, fixed, bounds, weights, noise_std, model) -> _Problem:
     """Every check of the problem, the scene, the references and the start."""
     n = _check_call(data, scene_template, n_terms, options, noise_std)
     init = _check_init(init, data, scene_template, n, poisson, weights)
     dtype = scene_template.grid.size.dtype
-    fixed = _check_fixed(fixed, n)
-    bounds = _check_bounds(bounds, fixed)
+    fixed = check_fixed(fixed, n)
+    bounds = check_bounds(bounds, fixed)
     fit_poisson = bool(fit_poisson)
     n_params = 1 + 2 * n + int(fit_poisson) - sum(
         int(np.size(v)) for v in fixed.values())
@@ -256,24 +256,24 @@ def _set_up(data, scene_template, n_terms, options: FitOptions, *, init, poisson
             f"{n_params} parameters need more than {n_params} samples, got "
             f"{data.times.shape[0]} (use more samples or fewer terms)"
         )
-    scene, kind, target = _scene_for(data, scene_template, dtype)
+    scene, kind, target = scene_for(data, scene_template, dtype)
     rms_target, scale = _residual_scale(target, weights, kind, dtype)
     poisson = _check_poisson(poisson, scene_template, fit_poisson)
     stand_in = model is not None
     if stand_in:
         model, ctx = model
     else:
-        model, ctx = _scene_model(scene, kind, options.solve_options)
+        model, ctx = scene_model(scene, kind, options.solve_options)
     g_ref = float(init.relaxation(0.0)) if init is not None else float(
         scene_template.material.relaxation(0.0))
-    refs = _make_refs(g_ref, float(data.times[-1] - data.times[0]), poisson, fixed,
-                      bounds, dtype)
-    ev = _Evaluator(ctx, refs, target, scale, model, fit_poisson, dtype)
+    refs = make_refs(g_ref, float(data.times[-1] - data.times[0]), poisson, fixed,
+                     bounds, dtype)
+    ev = Evaluator(ctx, refs, target, scale, model, fit_poisson, dtype)
     if init is None:
-        init = _initial_guess(ev, refs, fit_poisson, kind, data.times, target, n,
-                              _initial_times(data.times, n), dtype, poisson,
-                              data.depth if kind == "force" else data.force)
-    theta = _to_theta(init, refs, fit_poisson, dtype)
+        init = initial_guess(ev, refs, fit_poisson, kind, data.times, target, n,
+                             initial_times(data.times, n), dtype, poisson,
+                             data.depth if kind == "force" else data.force)
+    theta = to_theta(init, refs, fit_poisson, dtype)
     theta = {k: v for k, v in theta.items() if k not in fixed}
     return _Problem(data, n, kind, scene, target, scale, rms_target, refs, ev, model,
                     stand_in, init, theta, fixed, fit_poisson, n_params, noise_std,
@@ -295,8 +295,8 @@ class _Run(NamedTuple):
     history: list
 
 
-def _fit(p: _Problem, options: FitOptions, lm_ready=None) -> PronyFit:
-    """The fit of a set-up problem (`lm_ready`: see `_LMRun`)."""
+def fit_problem(p: _Problem, options: FitOptions, lm_ready=None) -> PronyFit:
+    """The fit of a set-up problem (`lm_ready`: see `LMRun`)."""
     return _finish(p, options, _optimise(p, options, lm_ready))
 
 
@@ -304,7 +304,7 @@ def _optimise(p: _Problem, options: FitOptions, lm_ready=None) -> _Run:
     """The optimiser's run from the start, restarted from boundary probes; `"auto"`
     hands over to LM where L-BFGS' result is not certified."""
     history = []
-    lm = _LMRun(p.ev, options.lm_steps, p.dtype, p.init, history, ready=lm_ready)
+    lm = LMRun(p.ev, options.lm_steps, p.dtype, p.init, history, ready=lm_ready)
 
     def probed(run, theta, adam_steps):
         return with_probes(run, theta, adam_steps, ev=p.ev, refs=p.refs,
@@ -319,12 +319,12 @@ def _optimise(p: _Problem, options: FitOptions, lm_ready=None) -> _Run:
         gtol = 1e-12 if jnp.finfo(p.dtype).bits >= 64 else 1e-6
 
     def lbfgs(theta, adam_steps):
-        return _adam_lbfgs(p.ev, theta, adam_steps, options=options, gtol=gtol,
-                           fd_step=p.fd_step, history=history, init=p.init)
+        return adam_lbfgs(p.ev, theta, adam_steps, options=options, gtol=gtol,
+                          fd_step=p.fd_step, history=history, init=p.init)
 
     theta, message, probe, n_adam, n_lbfgs = probed(lbfgs, p.theta, options.adam_steps)
     used = "lbfgs"
-    if options.optimiser == "auto" and _have_optimistix():
+    if options.optimiser == "auto" and have_optimistix():
         handed = _hand_over(p, theta, probe, lambda th: probed(lm, th, 0))
         if handed is not None:
             theta, message_lm, probe, from_start, why = handed
@@ -341,16 +341,16 @@ def _hand_over(p: _Problem, theta, probe, run_lm):
     # L-BFGS is fast from a good start (64^2 x 40, PMMA step, float64: 6.8 s against
     # 7.1 s for LM, whose Jacobian costs one tangent solve per parameter per step); LM
     # reaches the minimum from starts where L-BFGS stalls. So LM takes over where
-    # L-BFGS' result is not certified (see `_certify`).
+    # L-BFGS' result is not certified (see `certify`).
     ev = p.ev
     _, _, c_auto, _ = ev.loss(theta)
     r_auto = (np.asarray(c_auto) - np.asarray(p.target)) / np.asarray(p.scale, float)
-    pred = _predicted_decrease(ev.jacobian(theta, p.fd_step), r_auto)
+    pred = predicted_decrease(ev.jacobian(theta, p.fd_step), r_auto)
     value_auto = float(np.mean(r_auto**2))
-    stuck = _at_boundary(_to_material(theta, p.refs, p.fit_poisson), p.data.times,
-                         p.refs)
+    stuck = at_boundary(to_material(theta, p.refs, p.fit_poisson), p.data.times,
+                        p.refs)
     if not (probe is not None or stuck
-            or not (pred < _GN_TOL or pred * value_auto < _floor(p.dtype))):
+            or not (pred < GN_TOL or pred * value_auto < decrease_floor(p.dtype))):
         return None
     # LM from L-BFGS' end AND from the start (L-BFGS may have walked into a dead arm,
     # where no gradient leads out: the creep file at 16^2, 1 arm, sent tau_1 to
@@ -377,10 +377,10 @@ def _sensitivities(p: _Problem, theta, rows, rel):
         sigma_rel = float(p.noise_std) / float(p.rms_target)
     # The Jacobian in the logs of the parameters (bounded ones are optimised in a
     # logit coordinate): std and covariance are those of the log-parameters.
-    factor = np.asarray(ravel_pytree(_bound_factors(theta, p.refs))[0], float)
+    factor = np.asarray(ravel_pytree(bound_factors(theta, p.refs))[0], float)
     # a bounded parameter with its sigmoid saturated (factor 0) is undetermined
     factor = np.where(factor > 0, factor, np.inf)
-    found = _covariance(rows, factor, sigma_rel)
+    found = log_covariance(rows, factor, sigma_rel)
     if found is None:
         return (np.full(rows.shape[1], np.nan), np.full((rows.shape[1],) * 2, np.nan),
                 factor, sigma_rel, "; the model's Jacobian is not finite: std is NaN")
@@ -394,8 +394,8 @@ def _grid_check(p: _Problem, options: FitOptions, theta, curve):
     if not isinstance(p.scene.indenter, Sphere):
         return None, ("; check_grid needs a jc.Sphere indenter (a surface array is "
                       "per grid)")
-    material = _to_material(theta, p.refs, p.fit_poisson)
-    return _discretisation(p.scene, material, p.model, curve), ""
+    material = to_material(theta, p.refs, p.fit_poisson)
+    return discretisation_rms(p.scene, material, p.model, curve), ""
 
 
 def _finish(p: _Problem, options: FitOptions, run: _Run) -> PronyFit:
@@ -406,18 +406,18 @@ def _finish(p: _Problem, options: FitOptions, run: _Run) -> PronyFit:
     residual = np.asarray(curve) - np.asarray(p.target)
     rel = residual / np.asarray(p.scale, float)  # weighted, relative
     std, cov, factor, sigma_rel, note = _sensitivities(p, theta, rows, rel)
-    stuck = [x for x in _at_boundary(_to_material(theta, p.refs, p.fit_poisson),
-                                     p.data.times, p.refs)
+    stuck = [x for x in at_boundary(to_material(theta, p.refs, p.fit_poisson),
+                                    p.data.times, p.refs)
              if x.split("_")[0] + ("_inf" if x.startswith("g_inf") else "")
              not in p.fixed]
-    converged, verdict = _certify(rows, rel, value, ok, run.probe, stuck, p.dtype)
+    converged, verdict = certify(rows, rel, value, ok, run.probe, stuck, p.dtype)
     discretisation, grid_note = _grid_check(p, options, theta, curve)
-    material = _to_material(theta, p.refs, p.fit_poisson)
+    material = to_material(theta, p.refs, p.fit_poisson)
     if not p.stand_in and dict(p.model.options).get("scheme") == "constant":
         # Inside the fit the material is traced and jc.solve cannot check its steps;
         # check the result (the issue's fits sat at an amplification of 1.14 unseen).
-        _warn_unstable_steps(material, p.scene.times)
-    material, order = _sorted_by_tau(material)
+        warn_unstable_steps(material, p.scene.times)
+    material, order = sorted_by_tau(material)
     return PronyFit(
         material=material,
         initial=p.init,
@@ -436,11 +436,11 @@ def _finish(p: _Problem, options: FitOptions, run: _Run) -> PronyFit:
         curve=np.asarray(curve),
         residual=residual,
         kind=p.kind,
-        std=_sorted_split(theta, std, p.fixed, order),
-        covariance=_sorted_covariance(cov, theta, p.fixed, order, p.fit_poisson),
-        parameter_names=_parameter_names(p.n, p.fit_poisson),
-        gradient=_sorted_split(theta, np.asarray(ravel_pytree(grad)[0]) / factor,
-                               p.fixed, order),
+        std=sorted_split(theta, std, p.fixed, order),
+        covariance=sorted_covariance(cov, theta, p.fixed, order, p.fit_poisson),
+        parameter_names=parameter_names(p.n, p.fit_poisson),
+        gradient=sorted_split(theta, np.asarray(ravel_pytree(grad)[0]) / factor,
+                              p.fixed, order),
         noise=sigma_rel * float(p.rms_target),
         discretisation=discretisation,
     )

@@ -2,7 +2,7 @@
 driven from Python: a few Adam steps (the best point is kept), then L-BFGS
 (`optax.scale_by_lbfgs`, the direction of `optax.lbfgs`, memory 20) with an Armijo
 backtracking line search, every evaluation one call of the compiled objective
-(`_Evaluator.loss`). Both run in coordinates whitened by the Gauss-Newton Hessian at
+(`Evaluator.loss`). Both run in coordinates whitened by the Gauss-Newton Hessian at
 the start (`FitOptions.precondition`), rebuilt as the loss falls.
 """
 
@@ -14,7 +14,7 @@ import numpy as np
 import optax
 from jax.flatten_util import ravel_pytree
 
-from .model import _Evaluator
+from .model import Evaluator
 
 
 _MAX_STEP = 1.0  # largest change of a log-parameter in one L-BFGS step
@@ -28,7 +28,7 @@ class _Whitened:
     a Prony fit (at 32^2 x 24, noiseless PMMA: 43 L-BFGS steps without, a handful
     with)."""
 
-    def __init__(self, ev: _Evaluator, theta, precondition: bool, fd_step: float):
+    def __init__(self, ev: Evaluator, theta, precondition: bool, fd_step: float):
         self.ev, self.precondition, self.fd_step = ev, precondition, fd_step
         self.flat0, self.unravel = ravel_pytree(theta)
         self.precond = self._whitening(theta)
@@ -55,7 +55,7 @@ class _Whitened:
         self.precond = self._whitening(self.unravel(self.flat0))
 
 
-def _adam(ev: _Evaluator, w: _Whitened, theta, steps, learning_rate, history, init):
+def _adam(ev: Evaluator, w: _Whitened, theta, steps, learning_rate, history, init):
     """`steps` Adam steps from `theta` (`z = 0`): `(loss, z, gradient, steps taken)`
     of the best point; appends the losses to `history`."""
     z = jnp.zeros_like(w.flat0)
@@ -91,7 +91,7 @@ def _adam(ev: _Evaluator, w: _Whitened, theta, steps, learning_rate, history, in
     return value, z, grad, taken
 
 
-def _line_search(ev: _Evaluator, w: _Whitened, z, direction, value, slope, alpha):
+def _line_search(ev: Evaluator, w: _Whitened, z, direction, value, slope, alpha):
     """Armijo backtracking along `-direction` from step `alpha`, halved at most 30
     times: `(z, loss, gradient, alpha)` of the first accepted step, or `None`."""
     for _ in range(30):
@@ -104,7 +104,7 @@ def _line_search(ev: _Evaluator, w: _Whitened, z, direction, value, slope, alpha
     return None
 
 
-def _lbfgs(ev: _Evaluator, w: _Whitened, z, value, grad, steps, gtol, history):
+def _lbfgs(ev: Evaluator, w: _Whitened, z, value, grad, steps, gtol, history):
     """At most `steps` L-BFGS iterations from `z`: `(z, converged, message, steps
     taken)`; appends the losses to `history`. Far from the optimum `H` changes: when
     L-BFGS has cut the loss 100-fold since `M` was built, `M` is rebuilt there and
@@ -152,8 +152,8 @@ def _lbfgs(ev: _Evaluator, w: _Whitened, z, value, grad, steps, gtol, history):
     return z, converged, message, taken
 
 
-def _adam_lbfgs(ev: _Evaluator, theta, adam_steps, *, options, gtol, fd_step,
-                history, init):
+def adam_lbfgs(ev: Evaluator, theta, adam_steps, *, options, gtol, fd_step,
+               history, init):
     """Adam, then L-BFGS, from `theta`: `(theta, converged, message, Adam steps,
     L-BFGS steps)`; appends the losses to `history`. `options`: the
     `jc.FitOptions` (`learning_rate`, `lbfgs_steps`, `precondition`)."""

@@ -2,7 +2,7 @@
 optimistix's `LevenbergMarquardt` on the relative residual, its Jacobian by forward
 mode through the contact solve's implicit tangent solves (one per parameter), one
 compiled program per problem shape; vmapped over a batch of curves for
-`jc.fit_prony_batch`. `_LMRun` drives it from a fit (a failure is a message, not an
+`jc.fit_prony_batch`. `LMRun` drives it from a fit (a failure is a message, not an
 exception)."""
 
 import dataclasses
@@ -12,10 +12,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._solver.implicit import ImplicitAdjoint
-from .model import _Evaluator, _residual, _SceneModel
+from .model import Evaluator, SceneModel, relative_residual
 
 
-def _have_optimistix() -> bool:
+def have_optimistix() -> bool:
     try:
         import optimistix  # noqa: F401
     except ImportError:
@@ -23,7 +23,7 @@ def _have_optimistix() -> bool:
     return True
 
 
-def _lm_rtol(dtype) -> float:
+def lm_rtol(dtype) -> float:
     """LM's relative tolerance (its absolute one is a tenth of it) for `dtype`."""
     return 1e-8 if jnp.finfo(dtype).bits >= 64 else 1e-4
 
@@ -42,12 +42,12 @@ def _lm_solve(theta, args, rtol, atol, max_steps):
 def _forward_model(model):
     """The contact model with its solves differentiated in forward mode (the options'
     `adjoint`, or the default one, with `mode="forward"`); other models as they are."""
-    if not isinstance(model, _SceneModel):
+    if not isinstance(model, SceneModel):
         return model
     options = dict(model.options)
     given = options.get("adjoint") or ImplicitAdjoint()
     options["adjoint"] = dataclasses.replace(given, mode="forward")
-    return _SceneModel(model.kind, tuple(sorted(options.items())))
+    return SceneModel(model.kind, tuple(sorted(options.items())))
 
 
 def _lm_solve_unjitted(theta, args, rtol, atol, max_steps):
@@ -55,32 +55,33 @@ def _lm_solve_unjitted(theta, args, rtol, atol, max_steps):
 
     ctx, refs, target, scale, model, fit_poisson = args
     args = (ctx, refs, target, scale, _forward_model(model), fit_poisson)
-    sol = optx.least_squares(_residual, optx.LevenbergMarquardt(rtol=rtol, atol=atol),
+    sol = optx.least_squares(relative_residual,
+                             optx.LevenbergMarquardt(rtol=rtol, atol=atol),
                              theta, args, options={"jac": "fwd"}, max_steps=max_steps,
                              throw=False)
     return sol.value, sol.result == optx.RESULTS.successful, sol.stats["num_steps"]
 
 
 @eqx.filter_jit
-def _lm_solve_batch(theta, args, axes, rtol, atol, max_steps):
+def lm_solve_batch(theta, args, axes, rtol, atol, max_steps):
     """`_lm_solve` over a batch of curves: `jax.vmap` of the whole Levenberg-Marquardt
     solve (one compiled program; the loop runs until its slowest member, the others
     held at their end point). `theta`: every leaf with a leading batch axis; `args`:
-    `_residual`'s arguments, the leaves whose `axes` entry is 0 batched. Inputs
+    `relative_residual`'s arguments, the leaves whose `axes` entry is 0 batched. Inputs
     sharded along the batch axis are computed where they lie (XLA's partitioner)."""
     return eqx.filter_vmap(
         lambda th, a: _lm_solve_unjitted(th, a, rtol, atol, max_steps),
         in_axes=(0, axes))(theta, args)
 
 
-class _LMRun:
+class LMRun:
     """Levenberg-Marquardt runs of one fit: `run(theta)` -> `(theta, converged,
     message, 0, 0)` (the zeros: no Adam or L-BFGS steps), the end point's loss
     appended to `history`, the LM steps summed in `total`. `ready`: the result
     `(theta, converged, steps)` of this fit's first run, already solved (by
     `jc.fit_prony_batch`'s batched program), used in place of the first solve."""
 
-    def __init__(self, ev: _Evaluator, max_steps: int, dtype, init, history: list,
+    def __init__(self, ev: Evaluator, max_steps: int, dtype, init, history: list,
                  ready=None):
         self.ev, self.max_steps, self.dtype = ev, max_steps, dtype
         self.init, self.history, self.ready = init, history, ready
@@ -90,7 +91,7 @@ class _LMRun:
         if self.ready is not None:
             ready, self.ready = self.ready, None
             return ready
-        rtol = _lm_rtol(self.dtype)
+        rtol = lm_rtol(self.dtype)
         return _lm_solve(theta, self.ev.args, rtol, 0.1 * rtol, self.max_steps)
 
     def __call__(self, theta, adam_steps=0):

@@ -8,7 +8,7 @@ The objective is the mean squared RELATIVE residual
 smaller for any initial guess of the right order. Every model evaluation outside
 Levenberg-Marquardt goes through ONE compiled value-and-gradient function
 (`_objective`; the line search, the initial guess and the sensitivities reuse it, and
-`_Evaluator` counts the calls), so a fit compiles the model once, and further fits of
+`Evaluator` counts the calls), so a fit compiles the model once, and further fits of
 the same shapes (a noise study) compile nothing new.
 """
 
@@ -20,13 +20,13 @@ import jax.numpy as jnp
 import numpy as np
 from jax.flatten_util import ravel_pytree
 
-from .._solve import _operator_for, solve
-from .._sweep import _traced_directions
-from .parametrisation import _to_material
+from .._solve import operator_for, solve
+from .._sweep import traced_directions
+from .parametrisation import to_material
 
 
 @dataclasses.dataclass(frozen=True)
-class _SceneModel:
+class SceneModel:
     """The contact model as `curve(material, ctx) -> ((nt,) curve, (nt,) converged)`,
     with `ctx = (scene, operator)`. Hashable (a static argument of the jitted
     objective): `kind` is `"force"` or `"depth"`, `options` the `jc.solve` keywords."""
@@ -43,7 +43,7 @@ class _SceneModel:
         return curve, sol.converged
 
 
-def _scene_model(scene, kind: str, solve_options: dict | None):
+def scene_model(scene, kind: str, solve_options: dict | None):
     """`(model, ctx)`: the contact model of `scene` with `solve_options` (scheme
     `"linear"` unless they say otherwise) and its context (the scene, its operator)."""
     # scheme "linear" by default: measured data are sampled ramps, which the
@@ -51,8 +51,8 @@ def _scene_model(scene, kind: str, solve_options: dict | None):
     # steps: the model 6 % off on loading, g_1 -17 %); it is also stable at any
     # step, whatever material the optimiser tries.
     options = {"scheme": "linear", **dict(solve_options or {})}
-    model = _SceneModel(kind, tuple(sorted(options.items())))
-    return model, (scene, _operator_for(scene, _traced_directions(scene)))
+    model = SceneModel(kind, tuple(sorted(options.items())))
+    return model, (scene, operator_for(scene, traced_directions(scene)))
 
 
 @eqx.filter_jit
@@ -61,21 +61,21 @@ def _objective(theta, ctx, refs, target, scale, model, fit_poisson):
     `loss = mean(((curve - target) / scale)^2)`."""
 
     def loss(theta):
-        curve, ok = model(_to_material(theta, refs, fit_poisson), ctx)
+        curve, ok = model(to_material(theta, refs, fit_poisson), ctx)
         return jnp.mean(((curve - target) / scale) ** 2), (curve, ok)
 
     return jax.value_and_grad(loss, has_aux=True)(theta)
 
 
-def _residual(theta, args):
+def relative_residual(theta, args):
     """Relative residual `(curve - target) / scale` (the least-squares form of
     `_objective`'s loss: `loss = mean(residual^2)`)."""
     ctx, refs, target, scale, model, fit_poisson = args
-    curve, _ = model(_to_material(theta, refs, fit_poisson), ctx)
+    curve, _ = model(to_material(theta, refs, fit_poisson), ctx)
     return (curve - target) / scale
 
 
-class _Evaluator:
+class Evaluator:
     """Calls the compiled objective, counts the calls."""
 
     def __init__(self, ctx, refs, target, scale, model, fit_poisson, dtype):

@@ -116,7 +116,7 @@ class FitOptions:
 _FIELDS = tuple(f.name for f in dataclasses.fields(FitOptions))
 
 
-def _with_legacy(options, legacy: dict, caller: str) -> FitOptions:
+def with_legacy(options, legacy: dict, caller: str) -> FitOptions:
     """`options` with the optimiser keywords given the old way (`lm_steps=...` as a
     keyword of the fit, still accepted) put in: `dataclasses.replace`, so that they
     are checked alike; a keyword that is no field of `FitOptions` is a `TypeError`."""

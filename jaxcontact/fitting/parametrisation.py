@@ -24,21 +24,21 @@ from .._material.prony import Prony
 _KEYS = ("g_inf", "g", "tau")
 
 
-def _to_material(theta: dict, refs: dict, fit_poisson: bool) -> Prony:
+def to_material(theta: dict, refs: dict, fit_poisson: bool) -> Prony:
     # Fixed parameters (`fit_prony(fixed=...)`) are held in `refs["fixed"]` as log
     # values and are not among the optimised leaves of `theta`.
     theta = {**refs.get("fixed", {}), **theta}
     g_ref, t_ref = refs["g_ref"], refs["t_ref"]
     poisson = 0.5 * jax.nn.sigmoid(theta["poisson"]) if fit_poisson else refs["poisson"]
     return Prony(
-        g_ref * jnp.exp(_log_scaled(theta, refs, "g_inf")),
-        g_ref * jnp.exp(_log_scaled(theta, refs, "g")),
-        t_ref * jnp.exp(_log_scaled(theta, refs, "tau")),
+        g_ref * jnp.exp(log_scaled(theta, refs, "g_inf")),
+        g_ref * jnp.exp(log_scaled(theta, refs, "g")),
+        t_ref * jnp.exp(log_scaled(theta, refs, "tau")),
         poisson,
     )
 
 
-def _log_scaled(theta, refs, key):
+def log_scaled(theta, refs, key):
     """`log(value / reference)` of parameter `key`: `theta[key]` itself, or for a
     parameter with bounds (`fit_prony(bounds=...)`, held in `refs["bounds"]` as
     `(lo, hi)` in the same scaled logs) `lo + (hi - lo) sigmoid(theta[key])`."""
@@ -49,7 +49,7 @@ def _log_scaled(theta, refs, key):
     return theta[key]
 
 
-def _bound_factors(theta, refs):
+def bound_factors(theta, refs):
     """`d log(value) / d theta` of every leaf of `theta` (1 where unbounded)."""
     out = {}
     for key, value in theta.items():
@@ -62,7 +62,7 @@ def _bound_factors(theta, refs):
     return out
 
 
-def _to_theta(material: Prony, refs: dict, fit_poisson: bool, dtype) -> dict:
+def to_theta(material: Prony, refs: dict, fit_poisson: bool, dtype) -> dict:
     theta = {
         "g_inf": jnp.log(jnp.asarray(material.g_inf, dtype) / refs["g_ref"]),
         "g": jnp.log(jnp.asarray(material.g, dtype) / refs["g_ref"]),
@@ -79,13 +79,13 @@ def _to_theta(material: Prony, refs: dict, fit_poisson: bool, dtype) -> dict:
     return theta
 
 
-def _split(theta: dict, values: np.ndarray) -> dict:
+def split(theta: dict, values: np.ndarray) -> dict:
     """Per-parameter pieces of a flat vector laid out like `ravel_pytree(theta)`."""
     _, unravel = ravel_pytree(theta)
     return {k: np.asarray(v) for k, v in unravel(jnp.asarray(values)).items()}
 
 
-def _check_fixed(fixed, n: int) -> dict:
+def check_fixed(fixed, n: int) -> dict:
     """`fit_prony(fixed=...)` checked: `{key: array > 0}` of `g_inf` (a number), `g`
     and `tau` (`n` numbers each)."""
     out = {}
@@ -103,7 +103,7 @@ def _check_fixed(fixed, n: int) -> dict:
     return out
 
 
-def _check_bounds(bounds, fixed: dict) -> dict:
+def check_bounds(bounds, fixed: dict) -> dict:
     """`fit_prony(bounds=...)` checked: `{key: (lo, hi)}`, `0 < lo < hi < inf`, of
     parameters that are not `fixed`."""
     out = {}
@@ -123,10 +123,10 @@ def _check_bounds(bounds, fixed: dict) -> dict:
     return out
 
 
-def _make_refs(g_ref: float, t_ref: float, poisson, fixed: dict, bounds: dict,
-               dtype) -> dict:
+def make_refs(g_ref: float, t_ref: float, poisson, fixed: dict, bounds: dict,
+              dtype) -> dict:
     """The reference scales, Poisson's ratio and the fixed values and bounds in scaled
-    logs: what `_to_material` needs besides `theta`."""
+    logs: what `to_material` needs besides `theta`."""
     refs = {
         "g_ref": jnp.asarray(g_ref, dtype),
         "t_ref": jnp.asarray(t_ref, dtype),

@@ -21,6 +21,8 @@ import math
 
 import numpy as np
 
+from .._loading import Displacement, Force
+from .._solve import solve
 from .floor import closed_form_floor
 
 
@@ -39,17 +41,15 @@ def model_curve(material, template, *, times, force, depth, kind, refine=1):
     import equinox as eqx
     import jax.numpy as jnp
 
-    import jaxcontact as jc
-
     grid = template.grid
     if refine != 1:
         grid = type(grid)(shape=tuple(refine * k for k in grid.shape), size=grid.size,
                           periodic=grid.periodic)
-    normal = (jc.Force(jnp.asarray(force)) if kind == "depth"
-              else jc.Displacement(jnp.asarray(depth)))
+    normal = (Force(jnp.asarray(force)) if kind == "depth"
+              else Displacement(jnp.asarray(depth)))
     scene = eqx.tree_at(lambda s: (s.grid, s.material, s.times, s.normal), template,
                         (grid, material, jnp.asarray(times), normal))
-    sol = jc.solve(scene, scheme="linear", throw=False)
+    sol = solve(scene, scheme="linear", throw=False)
     return np.asarray(sol.approach if kind == "depth" else sol.normal_force)
 
 

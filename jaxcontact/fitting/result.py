@@ -6,7 +6,7 @@ import equinox as eqx
 import numpy as np
 
 from .._material.prony import Prony
-from .parametrisation import _split
+from .parametrisation import split
 
 
 class PronyFit(eqx.Module):
@@ -100,35 +100,35 @@ class PronyFit(eqx.Module):
         return fit_dataset(self, units=units, attrs=attrs)
 
 
-def _sorted_by_tau(material: Prony):
+def sorted_by_tau(material: Prony):
     """`(material, order)`: the arms sorted by relaxation time, and the order."""
     order = np.argsort(np.asarray(material.tau))
     return Prony(material.g_inf, material.g[order], material.tau[order],
                  material.poisson), order
 
 
-def _parameter_names(n: int, fit_poisson: bool) -> tuple:
+def parameter_names(n: int, fit_poisson: bool) -> tuple:
     return (("g_inf",) + tuple(f"g_{i + 1}" for i in range(n))
             + tuple(f"tau_{i + 1}" for i in range(n))
             + (("poisson",) if fit_poisson else ()))
 
 
-def _sorted_split(theta, values, fixed: dict, order) -> dict:
+def sorted_split(theta, values, fixed: dict, order) -> dict:
     """The flat `values` (laid out like `theta`) per parameter, the arms in `order`;
     fixed parameters (not fitted: no spread, no gradient) zeros."""
-    out = _split(theta, values)
+    out = split(theta, values)
     for key in fixed:
         out[key] = np.zeros(np.shape(fixed[key]))
     out["g"], out["tau"] = out["g"][order], out["tau"][order]
     return out
 
 
-def _sorted_covariance(cov, theta, fixed: dict, order, fit_poisson: bool):
+def sorted_covariance(cov, theta, fixed: dict, order, fit_poisson: bool):
     """The covariance in the order g_inf, g_1..g_n, tau_1..tau_n (sorted by tau)
     [, poisson]: a permutation of ravel_pytree's (alphabetical keys) layout. Fixed
     parameters get rows and columns of zeros (index p: a padding slot)."""
     p_free = cov.shape[0]
-    index = _split(theta, np.arange(p_free))
+    index = split(theta, np.arange(p_free))
     for key in fixed:
         index[key] = np.full(np.shape(fixed[key]), p_free)
     perm = np.concatenate([np.atleast_1d(index["g_inf"]), index["g"][order],

@@ -1,6 +1,6 @@
 """Where a fit starts (unless `init=` is a `jc.Prony`).
 
-From the data (`_initial_guess`): one elastic run of the model turns every sample
+From the data (`initial_guess`): one elastic run of the model turns every sample
 into an apparent modulus, and a cheap least-squares Prony fit (optax L-BFGS, no
 contact model: `_prefit`) of `G(t)` (or `1/J(t)` under load control) to those moduli
 gives the series. Or (`init="lee-radok"`, `lee_radok_start`) from the closed-form
@@ -20,11 +20,11 @@ from .._loading import Displacement
 from .._material.prony import Prony, retardation_series
 from .._scene import Scene
 from .data import IndentationData
-from .model import _Evaluator
-from .parametrisation import _to_theta
+from .model import Evaluator
+from .parametrisation import to_theta
 
 
-def _initial_times(times: np.ndarray, n: int) -> np.ndarray:
+def initial_times(times: np.ndarray, n: int) -> np.ndarray:
     """`n` log-spaced times strictly inside [first step, span] of the data."""
     span = float(times[-1] - times[0])
     first = float(times[1] - times[0])
@@ -92,10 +92,10 @@ def _prefit(kind, lag, apparent, g_inf, arms, t_init, g_ref, t_ref, steps=200):
     return g_ref * float(np.exp(theta["g_inf"])), g_ref * np.exp(theta["g"]), tau
 
 
-def _apparent_moduli(ev: _Evaluator, refs, fit_poisson, kind, target, n, t_init,
+def _apparent_moduli(ev: Evaluator, refs, fit_poisson, kind, target, n, t_init,
                      dtype, poisson, driver):
     """`(G_app, use, g_trial)`: the apparent elastic moduli of the samples `use` (see
-    `_initial_guess`; `None, None` where none) and the last trial modulus."""
+    `initial_guess`; `None, None` where none) and the last trial modulus."""
     loading = np.ones(np.shape(target), bool)
     if driver is not None:
         d = np.asarray(driver, float)
@@ -105,7 +105,7 @@ def _apparent_moduli(ev: _Evaluator, refs, fit_poisson, kind, target, n, t_init,
     apparent, use = None, None
     for _ in range(1 if kind == "force" else 2):
         trial = Prony(g_trial, np.full(n, 1e-9 * g_trial), t_init, poisson)
-        _, _, curve, _ = ev.loss(_to_theta(trial, refs, fit_poisson, dtype))
+        _, _, curve, _ = ev.loss(to_theta(trial, refs, fit_poisson, dtype))
         curve = np.asarray(curve, dtype=float)
         if kind == "force":
             ok = (np.abs(curve) > 0.05 * np.max(np.abs(curve))) & (tgt > 0) & loading
@@ -120,8 +120,8 @@ def _apparent_moduli(ev: _Evaluator, refs, fit_poisson, kind, target, n, t_init,
     return apparent, use, g_trial
 
 
-def _initial_guess(ev: _Evaluator, refs, fit_poisson, kind, times, target, n, t_init,
-                   dtype, poisson, driver=None):
+def initial_guess(ev: Evaluator, refs, fit_poisson, kind, times, target, n, t_init,
+                  dtype, poisson, driver=None):
     """A starting Prony series from apparent elastic moduli along the curve.
 
     One (or, under load control, two) evaluations of the model with an effectively
