@@ -19,11 +19,50 @@ class AbstractIndenter(eqx.Module):
         """Initial gap `h0 >= 0` [length] at the cell centres of `grid`."""
 
 
-class Sphere(AbstractIndenter):
+def _half_angle(value) -> Float[Array, ""]:
+    """A half-angle [rad] in `(0, pi/2)`, validated."""
+    return _validate.scalar("half_angle", _validate.open_interval(
+        "half_angle", value, 0.0, np.pi / 2,
+        " radians (the angle between the axis and the flank)"))
+
+
+def _centre(centre, dtype) -> Float[Array, "2"]:
+    if not hasattr(centre, "dtype"):
+        centre = jnp.asarray(centre, dtype=dtype)
+    centre = _validate.finite("centre", centre)
+    if centre.shape != (2,):
+        raise ValueError(f"centre must be (x_c, y_c), got shape {centre.shape}")
+    return centre
+
+
+class AbstractAxisymmetricIndenter(AbstractIndenter):
+    """A rigid indenter of revolution about the vertical axis through `centre`: its
+    initial gap is a function of the distance `r` to the axis alone, `profile(r)`.
+    Frictionless indentation by one is an axisymmetric problem."""
+
+    centre: eqx.AbstractVar[Float[Array, "2"]]
+
+    @abc.abstractmethod
+    def profile(self, r: Float[Array, "..."]) -> Float[Array, "..."]:
+        """Initial gap `h0(r) >= 0` [length] at the distances `r >= 0` [length] from
+        the axis, `h0(0) = 0`."""
+
+    def gap(self, grid: Grid) -> Float[Array, "nx ny"]:
+        x, y = grid.coordinates()
+        dx, dy = x - self.centre[0], y - self.centre[1]
+        square = dx * dx + dy * dy
+        # A cell centred on the axis: no NaN in the derivative of |r| there.
+        positive = square > 0
+        r = jnp.where(positive, jnp.sqrt(jnp.where(positive, square, 1.0)), 0.0)
+        return self.profile(r)
+
+
+class Sphere(AbstractAxisymmetricIndenter):
     """A rigid sphere of radius `R`, in the Hertz (paraboloidal) approximation.
 
-    `h0(x, y) = ((x - x_c)^2 + (y - y_c)^2) / (2 R)`, valid while the contact radius is
-    small compared with `R` (as in Hertz theory and in the paper).
+    `h0(x, y) = ((x - x_c)^2 + (y - y_c)^2) / (2 R)`, i.e. `h0(r) = r^2 / (2 R)`, valid
+    while the contact radius is small compared with `R` (as in Hertz theory and in
+    the paper).
 
     **Arguments:**
 
@@ -36,12 +75,10 @@ class Sphere(AbstractIndenter):
 
     def __init__(self, radius, centre=(0.0, 0.0)):
         self.radius = _validate.scalar("radius", _validate.positive("radius", radius))
-        if not hasattr(centre, "dtype"):
-            centre = jnp.asarray(centre, dtype=self.radius.dtype)
-        centre = _validate.finite("centre", centre)
-        if centre.shape != (2,):
-            raise ValueError(f"centre must be (x_c, y_c), got shape {centre.shape}")
-        self.centre = centre
+        self.centre = _centre(centre, self.radius.dtype)
+
+    def profile(self, r):
+        return r * r / (2 * self.radius)
 
     def gap(self, grid: Grid) -> Float[Array, "nx ny"]:
         x, y = grid.coordinates()
@@ -78,6 +115,152 @@ class Surface(AbstractIndenter):
                 f"heights has shape {self.heights.shape} but the grid is {grid.shape}"
             )
         return self.heights
+
+
+class Cone(AbstractAxisymmetricIndenter):
+    """A rigid cone with a sharp tip: `h0(r) = r / tan(alpha)`.
+
+    Sneddon (1965): at the depth `d` the contact radius is `a = 2 d tan(alpha) / pi`
+    and the load `W = (2 / pi) E* d^2 tan(alpha)`, `E* = 2 G / (1 - nu)`; the pressure
+    has a logarithmic singularity at the tip, so a grid resolves the load to first
+    order in the cell size.
+
+    **Arguments:**
+
+    - `half_angle`: `alpha` [rad], the angle between the axis and the flank, in
+      `(0, pi/2)` (an AFM cone: about 0.3-0.4 rad).
+    - `centre`: `(x_c, y_c)` [length], default the origin.
+    """
+
+    half_angle: Float[Array, ""]
+    centre: Float[Array, "2"]
+
+    def __init__(self, half_angle, centre=(0.0, 0.0)):
+        self.half_angle = _half_angle(half_angle)
+        self.centre = _centre(centre, self.half_angle.dtype)
+
+    def profile(self, r):
+        return r / jnp.tan(self.half_angle)
+
+
+class BluntedCone(AbstractAxisymmetricIndenter):
+    """A cone whose tip is rounded by a paraboloid of radius `R`, tangent to the
+    flanks: `h0(r) = r^2 / (2 R)` for `r <= b = R / tan(alpha)`, and
+    `r / tan(alpha) - b / (2 tan(alpha))` beyond (the paraboloidal cap of Briscoe,
+    Sebastian & Adams 1994; a sphere below the depth `b / (2 tan(alpha))`, a cone
+    well beyond).
+
+    **Arguments:** `half_angle` `alpha` [rad] in `(0, pi/2)`, `tip_radius` `R`
+    [length] > 0, `centre` `(x_c, y_c)` [length].
+    """
+
+    half_angle: Float[Array, ""]
+    tip_radius: Float[Array, ""]
+    centre: Float[Array, "2"]
+
+    def __init__(self, half_angle, tip_radius, centre=(0.0, 0.0)):
+        self.half_angle = _half_angle(half_angle)
+        self.tip_radius = _validate.scalar(
+            "tip_radius", _validate.positive("tip_radius", tip_radius))
+        self.centre = _centre(centre, self.half_angle.dtype)
+
+    def profile(self, r):
+        cot = 1 / jnp.tan(self.half_angle)
+        b = self.tip_radius * cot  # where the cap meets the flank
+        return jnp.where(r <= b, r * r / (2 * self.tip_radius),
+                         r * cot - 0.5 * b * cot)
+
+
+class AxisymmetricProfile(AbstractAxisymmetricIndenter):
+    """Any tip of revolution, tabulated: `h0(r)` interpolated linearly between the
+    given points (a measured tip), continued beyond the last point along the last
+    segment's slope.
+
+    **Arguments:**
+
+    - `radii`: `(m,)` distances from the axis [length], increasing, the first `0`.
+    - `heights`: `(m,)` initial gaps there [length], the first `0`, non-decreasing.
+    - `centre`: `(x_c, y_c)` [length].
+    """
+
+    radii: Float[Array, " m"]
+    heights: Float[Array, " m"]
+    centre: Float[Array, "2"]
+
+    def __init__(self, radii, heights, centre=(0.0, 0.0)):
+        radii = _validate.finite("radii", radii)
+        heights = _validate.finite("heights", heights)
+        if radii.ndim != 1 or radii.shape != heights.shape or radii.shape[0] < 2:
+            raise ValueError(
+                "radii and heights must be 1-D arrays of the same length >= 2, got "
+                f"shapes {radii.shape} and {heights.shape}")
+        if not _validate.is_traced((radii, heights)):
+            r, h = np.asarray(radii), np.asarray(heights)
+            if r[0] != 0 or h[0] != 0:
+                raise ValueError("the profile must start at the apex: radii[0] = "
+                                 f"heights[0] = 0, got {r[0]!r} and {h[0]!r}")
+            if np.any(np.diff(r) <= 0):
+                raise ValueError(f"radii must increase, got {r!r}")
+            if np.any(np.diff(h) < 0):
+                raise ValueError(f"heights must not decrease, got {h!r}")
+        self.radii, self.heights = radii, heights
+        self.centre = _centre(centre, radii.dtype)
+
+    def profile(self, r):
+        inside = jnp.interp(r, self.radii, self.heights)
+        slope = ((self.heights[-1] - self.heights[-2])
+                 / (self.radii[-1] - self.radii[-2]))
+        beyond = self.heights[-1] + slope * (r - self.radii[-1])
+        return jnp.where(r <= self.radii[-1], inside, beyond)
+
+
+class Pyramid(AbstractIndenter):
+    """A rigid pyramid with `sides` flat faces and a sharp apex (an AFM tip: 4 sides;
+    Berkovich: 3): `h0 = max_k (x' cos(t_k) + y' sin(t_k)) / tan(alpha)`, `t_k =
+    rotation + 2 pi k / sides`, `(x', y')` from the centre. Not axisymmetric: solved
+    on the grid.
+
+    **Arguments:**
+
+    - `half_angle`: `alpha` [rad], the angle between the axis and a face (measured in
+      the plane through the axis normal to the face), in `(0, pi/2)`.
+    - `sides`: the number of faces, an integer >= 3 (default 4).
+    - `centre`: `(x_c, y_c)` [length]; `rotation`: `t_0` [rad] (default 0: a face
+      normal along +x).
+
+    `equivalent_cone()`: the cone with the same cross-section area at every depth
+    (`tan(alpha_c)^2 = sides tan(pi / sides) tan(alpha)^2 / pi`), the usual
+    axisymmetric stand-in for a pyramid (4 sides: its load at a depth within a few
+    percent, King 1987).
+    """
+
+    half_angle: Float[Array, ""]
+    centre: Float[Array, "2"]
+    rotation: Float[Array, ""]
+    sides: int = eqx.field(static=True)
+
+    def __init__(self, half_angle, sides=4, centre=(0.0, 0.0), rotation=0.0):
+        self.half_angle = _half_angle(half_angle)
+        self.sides = _validate.check_int("sides", sides, 3)
+        self.centre = _centre(centre, self.half_angle.dtype)
+        self.rotation = _validate.scalar("rotation", _validate.finite(
+            "rotation", _validate.as_float_array("rotation", rotation,
+                                                 self.half_angle.dtype)))
+
+    def gap(self, grid: Grid) -> Float[Array, "nx ny"]:
+        x, y = grid.coordinates()
+        dx, dy = x - self.centre[0], y - self.centre[1]
+        angles = self.rotation + 2 * np.pi * jnp.arange(self.sides) / self.sides
+        faces = (dx[..., None] * jnp.cos(angles)[None, None]
+                 + dy[..., None] * jnp.sin(angles)[None, None])
+        return jnp.max(faces, axis=-1) / jnp.tan(self.half_angle)
+
+    def equivalent_cone(self) -> Cone:
+        """The cone of equal cross-section area at every depth (see the class docs)."""
+        n = self.sides
+        ratio = n * np.tan(np.pi / n) / np.pi
+        return Cone(jnp.arctan(jnp.sqrt(ratio) * jnp.tan(self.half_angle)),
+                    centre=self.centre)
 
 
 def as_indenter(indenter) -> AbstractIndenter:

@@ -122,6 +122,15 @@ def non_negative(name: str, value) -> jax.Array:
                   "finite and >= 0")
 
 
+def open_interval(name: str, value, low: float, high: float,
+                  what: str = "") -> jax.Array:
+    """`value` in `(low, high)`, else a `ValueError` naming `name`, the value and
+    `what` the bounds mean."""
+    value = as_float_array(name, value)
+    return _check(name, value, lambda v: ~((v > low) & (v < high)),
+                  f"in ({low:g}, {high:g}){what}")
+
+
 def poisson_ratio(name: str, value) -> jax.Array:
     value = as_float_array(name, value)
     return _check(
