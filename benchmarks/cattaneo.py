@@ -154,7 +154,7 @@ def normal_vs_coupled(n=256, width=4.0, mu=0.3, repeats=3):
 
 
 def coupled_fft_floor(n, dtype, repeats=5):
-    """Seconds of the FFT floor of ONE fully coupled iteration (DESIGN.md section 6):
+    """Seconds of the FFT floor of ONE fully coupled iteration:
     one forward and one inverse padded FFT per block (p, q_x, q_y), i.e. three padded
     convolutions (`_common.fft_floor`, median of `repeats` jitted loops)."""
     return 3 * fft_floor(n, dtype, repeats)

@@ -47,6 +47,7 @@ from ._solver.implicit import ImplicitAdjoint as ImplicitAdjoint
 from ._solver.joint import JointPCG as JointPCG
 from ._solver.load_search import LoadByDisplacement as LoadByDisplacement
 from ._solver.normal import PolonskyKeer as PolonskyKeer
+from ._solver.rings import RingPolonskyKeer as RingPolonskyKeer
 from ._solver.rounds import Rounds as Rounds
 from ._subsurface import Stress as Stress
 from ._subsurface import subsurface_stress as subsurface_stress
@@ -81,6 +82,7 @@ __all__ = [
     "AbstractMaterial", "Elastic", "Maxwell", "Zener", "Prony", "CreepSeries",
     # Step solvers and gradients
     "AbstractStepSolver", "PolonskyKeer", "Rounds", "JointPCG", "Fallback",
+    "RingPolonskyKeer",
     "LoadByDisplacement", "ImplicitAdjoint", "StepProblem", "StepGuess", "StepResult",
     # Analytic references, fitting, AFM files
     "Hertz", "LeeRadok", "fit_prony", "fit_prony_batch", "FitOptions",

@@ -411,6 +411,7 @@ def solution_dataset(
         "slip": scene.slip,
         "solve_options": _json(solve_options or {}),
         "dtype": str(pressure.dtype),
+        "method": sol.method,
     }
     out_attrs.update(attrs or {})
     return xr.Dataset(data_vars, coords, out_attrs)

@@ -144,14 +144,14 @@ class Cone(AbstractAxisymmetricIndenter):
 
 
 class BluntedCone(AbstractAxisymmetricIndenter):
-    """A cone whose tip is rounded by a paraboloid of radius `R`, tangent to the
-    flanks: `h0(r) = r^2 / (2 R)` for `r <= b = R / tan(alpha)`, and
-    `r / tan(alpha) - b / (2 tan(alpha))` beyond (the paraboloidal cap of Briscoe,
-    Sebastian & Adams 1994; a sphere below the depth `b / (2 tan(alpha))`, a cone
-    well beyond).
+    """A cone of half-angle `alpha` whose apex is a spherical cap of radius `R`,
+    joined tangentially at `b = R cos(alpha)` (Briscoe, Sebastian & Adams 1994):
+    `h0(r) = R - sqrt(R^2 - r^2)` for `r <= b`, and the cone `h0(b) + (r - b) /
+    tan(alpha)` beyond. The cap is the exact sphere, not `jc.Sphere`'s paraboloid
+    (they agree to `O(r^4 / R^3)`).
 
     **Arguments:** `half_angle` `alpha` [rad] in `(0, pi/2)`, `tip_radius` `R`
-    [length] > 0, `centre` `(x_c, y_c)` [length].
+    [length] > 0, `centre` `(x_c, y_c)` [length] (default the origin).
     """
 
     half_angle: Float[Array, ""]
@@ -164,22 +164,30 @@ class BluntedCone(AbstractAxisymmetricIndenter):
             "tip_radius", _validate.positive("tip_radius", tip_radius))
         self.centre = _centre(centre, self.half_angle.dtype)
 
+    @property
+    def transition(self) -> Float[Array, ""]:
+        """`b = R cos(alpha)` [length], where the cap meets the flanks."""
+        return self.tip_radius * jnp.cos(self.half_angle)
+
     def profile(self, r):
-        cot = 1 / jnp.tan(self.half_angle)
-        b = self.tip_radius * cot  # where the cap meets the flank
-        return jnp.where(r <= b, r * r / (2 * self.tip_radius),
-                         r * cot - 0.5 * b * cot)
+        radius, b = self.tip_radius, self.transition
+        inside = jnp.minimum(r, b)
+        # R - sqrt(R^2 - r^2), written without the cancellation near r = 0.
+        cap = inside * inside / (radius + jnp.sqrt(radius * radius - inside * inside))
+        return cap + jnp.maximum(r - b, 0) / jnp.tan(self.half_angle)
 
 
 class AxisymmetricProfile(AbstractAxisymmetricIndenter):
-    """Any tip of revolution, tabulated: `h0(r)` interpolated linearly between the
-    given points (a measured tip), continued beyond the last point along the last
-    segment's slope.
+    """Any tip of revolution, tabulated (a measured tip): `h0(r)` interpolated
+    linearly between the given points, continued beyond the last point along the
+    last segment's slope.
 
     **Arguments:**
 
-    - `radii`: `(m,)` distances from the axis [length], increasing, the first `0`.
-    - `heights`: `(m,)` initial gaps there [length], the first `0`, non-decreasing.
+    - `radii`: `(m,)` distances from the axis [length], `m >= 2`, from 0, increasing.
+    - `heights`: `(m,)` initial gaps there [length], finite. Any offset and shape
+      (a tip with a central dip touches on an annulus); under displacement control
+      the approach counts from height 0, as for `jc.Surface`.
     - `centre`: `(x_c, y_c)` [length].
     """
 
@@ -194,15 +202,11 @@ class AxisymmetricProfile(AbstractAxisymmetricIndenter):
             raise ValueError(
                 "radii and heights must be 1-D arrays of the same length >= 2, got "
                 f"shapes {radii.shape} and {heights.shape}")
-        if not _validate.is_traced((radii, heights)):
-            r, h = np.asarray(radii), np.asarray(heights)
-            if r[0] != 0 or h[0] != 0:
-                raise ValueError("the profile must start at the apex: radii[0] = "
-                                 f"heights[0] = 0, got {r[0]!r} and {h[0]!r}")
-            if np.any(np.diff(r) <= 0):
-                raise ValueError(f"radii must increase, got {r!r}")
-            if np.any(np.diff(h) < 0):
-                raise ValueError(f"heights must not decrease, got {h!r}")
+        if not _validate.is_traced(radii):
+            r = np.asarray(radii)
+            if r[0] != 0 or np.any(np.diff(r) <= 0):
+                raise ValueError(
+                    f"radii must start at 0 (the axis) and increase, got {r!r}")
         self.radii, self.heights = radii, heights
         self.centre = _centre(centre, radii.dtype)
 

@@ -31,6 +31,9 @@ class Solution(eqx.Module):
       (inner CG iterations summed over the normal/tangential rounds).
     - `result`: `(nt,)` `jc.RESULTS`, how each step ended (`successful`, or why not);
       `fallbacks`: `(nt,)` secondary solvers run (`jc.Fallback`).
+    - `method`: which solver ran: `"grid"` (the step solvers on the grid) or
+      `"rings"` (the axisymmetric ring solver of a frictionless scene with an
+      axisymmetric indenter, its ring pressures mapped onto the grid's cells).
     - `edge_contact` (property): `(nt,)` contact reaches the outer ring of cells.
     """
 
@@ -51,6 +54,7 @@ class Solution(eqx.Module):
     residual: Float[Array, " nt"]
     result: RESULTS
     fallbacks: Int[Array, " nt"]
+    method: str = eqx.field(static=True, default="grid")
 
     @property
     def edge_contact(self) -> Bool[Array, " nt"]:

@@ -16,12 +16,14 @@ from ._material.elastic import Elastic
 from ._operator import HalfSpace
 from ._scene import Scene, check_targets, normal_targets, tangential_targets
 from ._solution import RESULTS, Solution
+from ._solve_rings import axisymmetric_support, solve_axisymmetric
 from ._solver.base import AbstractStepSolver, StepGuess, StepProblem
 from ._solver.fallback import Fallback
 from ._solver.implicit import ImplicitAdjoint, differentiable_step, empty_seed
 from ._solver.joint import JointPCG
 from ._solver.load_search import LoadByDisplacement
 from ._solver.normal import hertzian_guess
+from ._solver.rings import RingPolonskyKeer
 from ._solver.rounds import Rounds
 
 
@@ -233,6 +235,20 @@ def warn_unstable_steps(material, times):
             f"shorter steps.", _validate.TimeStepWarning, stacklevel=3)
 
 
+def _ring_solver(scene: Scene, solver) -> RingPolonskyKeer | None:
+    """The ring solver `jc.solve` runs `scene` with (a `jc.RingPolonskyKeer` given as
+    `solver`; the scene must qualify, `axisymmetric_support`), or `None`: the grid."""
+    if not isinstance(solver, RingPolonskyKeer):
+        return None
+    why = axisymmetric_support(scene)
+    if why is not None:
+        raise ValueError(f"jc.RingPolonskyKeer cannot solve this scene: {why}")
+    if _validate.is_traced(scene.grid.size):
+        raise ValueError("jc.RingPolonskyKeer lays its rings over the scene's grid: "
+                         "the grid's size must be concrete (not traced)")
+    return solver
+
+
 def solve(
     scene: Scene,
     *,
@@ -258,13 +274,20 @@ def solve(
     **Other arguments:**
 
     - `solver`: the step solver, an object (`jc.JointPCG()`, `jc.Rounds()`,
-      `jc.Fallback(primary, secondary)`, `jc.LoadByDisplacement(solver)`, ...). `None`
-      (default): chosen from the scene (`default_solver`): the rounds (exact in one)
+      `jc.Fallback(primary, secondary)`, `jc.LoadByDisplacement(solver)`,
+      `jc.RingPolonskyKeer()`, ...). `jc.RingPolonskyKeer()` solves a frictionless
+      scene (no tangential solve) with an axisymmetric indenter (`jc.Sphere`,
+      `jc.Cone`, ...) on `DEFAULT_RINGS` rings over half the grid's smaller side
+      (`sol.method == "rings"`; its derivatives are its own implicit ones, not
+      `adjoint`'s): second order in the ring width, milliseconds a history, its
+      pressures interpolated onto the grid's cells. `None` (default): chosen from
+      the scene, on the grid (`sol.method == "grid"`): the rounds (exact in one)
       without coupling; with coupling the joint iteration. A concrete coupled
-      solution that still has a failed step is solved again, whole, with the rounds
-      as a fallback and, under tangential load control, a root search over the
-      displacement (`robust_solver`), compiled only then; under `jit`, `vmap` or
-      `grad` there is no second solve (the flags, or `throw`, report the failure).
+      solution that still has a failed step is solved again,
+      whole, with the rounds as a fallback and, under tangential load control, a
+      root search over the displacement (`robust_solver`), compiled only then;
+      under `jit`, `vmap` or `grad` there is no second solve (the flags, or
+      `throw`, report the failure).
     - `rtol`, `max_steps`, `max_rounds`, `resync_every`, `precondition`: options of
       the default solver (only without `solver`; a solver object carries its own):
       relative tolerance of every contact solve (`None`: `1e-8` in float64, `1e-5` in
@@ -330,6 +353,22 @@ def solve(
         _validate.tolerance("rtol", rtol)
     if scheme == "constant":
         warn_unstable_steps(scene.material, scene.times)
+    if progress is True:
+        progress = _print_progress
+    elif progress is False:
+        progress = None
+    elif progress is not None and not callable(progress):
+        raise TypeError(
+            f"progress must be None, a bool or a callable, got {progress!r}")
+    ring_solver = _ring_solver(scene, solver)
+    if ring_solver is not None and operator is not None:
+        raise TypeError("operator= is a grid's jc.HalfSpace; jc.RingPolonskyKeer lays "
+                        "its own rings")
+    if ring_solver is not None:
+        rings = solve_axisymmetric(scene, solver=ring_solver, throw=False,
+                                   history=history, scheme=scheme, progress=progress)
+        sol = rings.to_solution(scene.grid, scene.indenter.centre, scene.friction)
+        return _raise_on_failure(sol) if throw else sol
     if operator is not None:
         if not isinstance(operator, HalfSpace):
             raise TypeError(f"operator must be a jc.HalfSpace, got {operator!r}")
@@ -368,13 +407,6 @@ def solve(
         retry = robust_solver(controls, **defaults)
     if operator is None:
         operator = operator_for(scene, nd)
-    if progress is True:
-        progress = _print_progress
-    elif progress is False:
-        progress = None
-    elif progress is not None and not callable(progress):
-        raise TypeError(
-            f"progress must be None, a bool or a callable, got {progress!r}")
     # A failed run-time check (traced bad input, or a step that did not converge with
     # `throw`) raises a ValueError whose first line is its message.
     with _validate.clear_runtime_errors():

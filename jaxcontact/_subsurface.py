@@ -42,7 +42,7 @@ Convolution: the non-periodic DC-FFT of `_operator.py`, its layout and transform
 order); kernels are built in float64 NumPy when the
 grid, depths and Poisson's ratio are concrete and with `jax.numpy` when traced.
 
-Sign conventions (DESIGN.md section 1): z points into the body; the pressure `p >= 0`
+Sign conventions (docs/conventions.md): z points into the body; the pressure `p >= 0`
 pushes the half-space in +z; the shear `(q_x, q_y)` is the traction on the half-space.
 Stresses are positive in tension, so under a pressure `s_zz = -p` at the surface.
 """

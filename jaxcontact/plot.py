@@ -166,8 +166,8 @@ def profiles(
     - `ax`: two Axes (pressure, shear); `path`: save the figure there.
 
     The left panel shows `p`, the right panel the shear component along `axis`
-    (`q_x` for `"x"`, `q_y` for `"y"`), both on the half-space (DESIGN.md sign
-    conventions).
+    (`q_x` for `"x"`, `q_y` for `"y"`), both on the half-space (the sign
+    conventions of docs/conventions.md).
     """
     _check_solution(solution)
     a0, p0 = _normalise(normalise)

@@ -9,9 +9,9 @@ every floating-point leaf of the scene; `None` keeps JAX's default float type.
 
 Units are SI (m, N, Pa, s). Moduli are TRUE shear moduli: the paper's tables and
 equations list twice the shear modulus (its published a0 and p0 come out only with
-`E* = G_paper / (1 - nu)`; see DESIGN.md section 1), so every modulus of the paper is
-halved here, every compliance doubled, and viscosities halved (relaxation times are
-unchanged).
+`E* = G_paper / (1 - nu)`; docs/conventions.md, "Moduli"), so every modulus of the
+paper is halved here, every compliance doubled, and viscosities halved (relaxation
+times are unchanged).
 
 Presets with friction use the paper's slip law (`slip="total"`, its Eq. 16) unless told
 otherwise (`slip="incremental"`, path dependent, is `jc.Scene`'s default).

@@ -65,8 +65,9 @@ def test_solution_round_trip_every_field(tmp_path, dtype):
     back = _round_trip(ds, tmp_path / "sol.nc")
     _check_labels(back)
     assert dict(back.sizes) == {"time": 4, "x": 12, "y": 12, "component": 2}
+    assert back.attrs["method"] == sol.method == "grid"  # which solver ran
     for name in _field_names(sol):
-        if name == "result":
+        if name in ("result", "method"):
             continue
         want = np.asarray(getattr(sol, name))
         got = back[name].values if name != "times" else back["time"].values
@@ -144,7 +145,7 @@ def test_sweep_round_trip_with_batch_coordinate(tmp_path):
     assert back["pressure"].dims == ("batch", "time", "x", "y")
     np.testing.assert_array_equal(back["friction"].values, np.asarray(mus))
     for name in _field_names(sol):
-        if name not in ("result", "times"):
+        if name not in ("result", "times", "method"):
             np.testing.assert_array_equal(back[name].values,
                                           np.asarray(getattr(sol, name)))
     np.testing.assert_array_equal(back["time"].values, np.asarray(scene.times))

@@ -48,9 +48,9 @@ def test_cone_follows_sneddon_under_both_controls(dtype):
 def test_blunted_cone_is_a_sphere_below_its_cap_and_a_cone_far_beyond():
     radius = 2e-6
     tip = jc.BluntedCone(ALPHA, radius)
-    cap_depth = radius / np.tan(ALPHA) ** 2 / 2  # where the cap meets the flanks
-    # Shallow: the contact stays on the paraboloidal cap, Hertz exactly.
-    shallow = 0.2 * cap_depth
+    # Shallow (a / R = 0.03): the contact stays on the spherical cap, Hertz to
+    # O(a^2 / R^2) (measured 2e-4), and the paraboloid of jc.Sphere alike.
+    shallow = 1e-3 * radius
     a_hertz = np.sqrt(radius * shallow)
     grid = jc.Grid((64, 64), 3 * a_hertz)
     sol = jc.solve_normal(grid, tip, jc.Elastic(G, NU), approach=shallow)
@@ -58,21 +58,23 @@ def test_blunted_cone_is_a_sphere_below_its_cap_and_a_cone_far_beyond():
     assert float(sol.normal_force) / hertz == pytest.approx(1, abs=2e-3)
     sphere = jc.solve_normal(grid, jc.Sphere(radius), jc.Elastic(G, NU),
                              approach=shallow)
-    np.testing.assert_allclose(sol.pressure, sphere.pressure, rtol=0,
-                               atol=1e-12 * float(sphere.pressure.max()))
-    # The profile is continuous with a continuous slope at the junction.
-    b = radius / np.tan(ALPHA)
+    assert float(sol.normal_force) == pytest.approx(float(sphere.normal_force),
+                                                    rel=1e-3)
+    # The profile is continuous with a continuous slope where the cap meets the
+    # flanks, at b = R cos(alpha).
+    b = radius * np.cos(ALPHA)
     r = jnp.array([b * (1 - 1e-9), b * (1 + 1e-9)])
     h = tip.profile(r)
     assert float(h[1] - h[0]) == pytest.approx(2e-9 * b / np.tan(ALPHA), rel=1e-3)
-    # Deep (20 x the cap depth): between the sharp cones whose apex is the tip's
-    # (its flanks lie the cap depth below theirs) and the flanks' virtual apex.
-    deep = 20 * cap_depth
-    a_cone = 2 * (deep + cap_depth) * np.tan(ALPHA) / np.pi
+    # Deep (20 x offset): between the sharp cone whose apex is the tip's and the one
+    # whose apex is the flanks' (offset = R (1 - sin(alpha)) / sin(alpha) below it).
+    offset = radius * (1 - np.sin(ALPHA)) / np.sin(ALPHA)
+    deep = 20 * offset
+    a_cone = 2 * (deep + offset) * np.tan(ALPHA) / np.pi
     grid = jc.Grid((64, 64), 3 * a_cone)
     sol = jc.solve_normal(grid, tip, jc.Elastic(G, NU), approach=deep)
     load = float(sol.normal_force)
-    assert sneddon_load(ALPHA, deep) < load < sneddon_load(ALPHA, deep + cap_depth)
+    assert sneddon_load(ALPHA, deep) < load < sneddon_load(ALPHA, deep + offset)
 
 
 def test_a_tabulated_profile_is_its_interpolant():
@@ -136,11 +138,11 @@ def test_gradient_of_the_cone_load_with_respect_to_its_angle():
     (lambda: jc.BluntedCone(0.3, -1e-6), "tip_radius must be finite and > 0"),
     (lambda: jc.Pyramid(0.3, sides=2), "sides must be >= 3, got 2"),
     (lambda: jc.AxisymmetricProfile([1e-6, 2e-6], [0.0, 1e-6]),
-     "must start at the apex"),
+     "radii must start at 0 (the axis) and increase"),
     (lambda: jc.AxisymmetricProfile([0.0, 2e-6, 1e-6], [0.0, 1e-6, 2e-6]),
-     "radii must increase"),
-    (lambda: jc.AxisymmetricProfile([0.0, 1e-6, 2e-6], [0.0, 2e-6, 1e-6]),
-     "heights must not decrease"),
+     "radii must start at 0 (the axis) and increase"),
+    (lambda: jc.AxisymmetricProfile([0.0, 1e-6], [0.0, float("nan")]),
+     "heights must be finite"),
 ])
 def test_bad_tips_are_refused_by_name(make, fragment):
     with pytest.raises(ValueError, match=fragment.replace("(", r"\(").replace(
