@@ -51,6 +51,10 @@ import jaxcontact as jc
 
 
 R, W, G, NU, MU = 10e-3, 0.15, 1e6, 0.3, 0.3
+# The tests share cached solutions and their compiled programs (functools.cache):
+# one test process runs them all (an xdist group, see tests/conftest.py).
+pytestmark = pytest.mark.xdist_group("partial_slip")
+
 RTOL = 1e-8  # jc.solve's default in float64
 
 

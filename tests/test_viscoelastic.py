@@ -61,6 +61,10 @@ from jaxcontact._history import ElasticHistory, RecursiveHistory
 from jaxcontact._history import history_for as _history_for
 
 
+# The tests share cached solutions and their compiled programs (functools.cache):
+# one test process runs them all (an xdist group, see tests/conftest.py).
+pytestmark = pytest.mark.xdist_group("viscoelastic")
+
 RTOL = 1e-8  # jc.solve's default in float64
 
 # ---- Paper parameters (converted to true shear moduli, see module docs) --------------
