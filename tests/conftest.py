@@ -48,6 +48,7 @@ def pytest_configure(config):
     persistent compilation cache for the test processes of a run (a fresh folder,
     removed at the end): a program one process compiled, another loads instead of
     compiling it again. `JAXCONTACT_TEST_CACHE_DIR=off` leaves the cache out."""
+    config.pluginmanager.register(_GroupInNodeId(), "jaxcontact-xdist-group-ids")
     if _quick_compile(config):
         os.environ["JAX_DISABLE_MOST_OPTIMIZATIONS"] = "1"  # subprocesses too
         jax.config.update("jax_disable_most_optimizations", True)
@@ -65,6 +66,44 @@ def pytest_configure(config):
         os.environ[_SHARED_CACHE] = tempfile.mkdtemp(prefix="jaxcontact-tests-xla-")
         config._jaxcontact_cache_owner = True
     enable_compilation_cache(os.environ[_SHARED_CACHE], min_compile_seconds=0.3)
+
+
+@pytest.hookimpl(tryfirst=True)  # before xdist reads the groups
+def pytest_collection_modifyitems(config, items):
+    """Under `--dist loadgroup` (pyproject addopts) the tests of a file that use a
+    module-scoped fixture of that file run in one test process: split over two, each
+    process would build the fixture (a solve, a fit) again."""
+    for item in items:
+        info = getattr(item, "_fixtureinfo", None)
+        if info is None or item.get_closest_marker("xdist_group"):
+            continue
+        path = item.nodeid.split("::")[0]
+        shared = any(d.scope == "module" and d.baseid == path
+                     for name in info.names_closure
+                     for d in info.name2fixturedefs.get(name, ()))
+        if shared:  # the group: the file's name without ".py"
+            item.add_marker(pytest.mark.xdist_group(path.rsplit("/", 1)[-1][:-3]))
+
+
+class _GroupInNodeId:
+    """`--dist loadgroup` on pytest 9: pytest-xdist (3.8) names an item's group by
+    appending `@group` to `item._nodeid`, the scheduler's only clue, but pytest 9
+    builds `nodeid` from `item._id`, so each group ran on both workers. The same
+    suffix, set where pytest 9 reads it (only where xdist's did not take)."""
+
+    @pytest.hookimpl(trylast=True)  # after xdist's own attempt
+    def pytest_collection_modifyitems(self, config, items):
+        if not getattr(config.option, "loadgroup", False):
+            return
+        for item in items:
+            names = sorted({str(m.args[0] if m.args else m.kwargs.get("name",
+                                                                      "default"))
+                            for m in item.iter_markers("xdist_group")})
+            suffix = "@" + "_".join(names)
+            if names and not item.nodeid.endswith(suffix):
+                from _pytest.nodeid import NodeId  # pytest 9
+
+                item._id = NodeId.parse(item.nodeid + suffix)
 
 
 def pytest_unconfigure(config):

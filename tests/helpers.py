@@ -17,7 +17,7 @@ import jaxcontact as jc
 
 SOLVE_RTOL = 1e-8  # jc.solve's default rtol in float64
 
-# The elastic partial-slip scene (DESIGN.md, the paper's elastic checks).
+# The elastic partial-slip scene (the paper's elastic checks).
 SPHERE_R = 10e-3  # m
 ELASTIC_G = 1e6  # Pa, true shear modulus
 ELASTIC_NU = 0.3

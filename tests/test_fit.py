@@ -16,7 +16,7 @@ Three layers:
    paper's PMMA series (Eq. 27) from synthetic noiseless data.
 
 PMMA (paper Eq. 27, Chen et al. 2011), in true shear moduli (the paper's moduli are
-2 G, see DESIGN.md): g_inf = 714.855 MPa, g = (92.31, 95.53) MPa,
+2 G, docs/conventions.md): g_inf = 714.855 MPa, g = (92.31, 95.53) MPa,
 tau = (8.93, 117.96) s, nu = 0.38; built here from the paper's creep form (Eq. 28) with
 `jc.Prony.from_creep` (Eq. 28 is in 1/GPa of the paper's modulus: J_true = 2 J_paper).
 """

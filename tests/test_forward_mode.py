@@ -20,6 +20,9 @@ R, W, G, NU = 10e-3, 0.15, 1.93e6, 0.3
 A0 = float(jc.Hertz(R, W, G, NU).contact_radius)
 FORWARD = jc.ImplicitAdjoint(mode="forward", rtol=1e-10)
 REVERSE = jc.ImplicitAdjoint(rtol=1e-10)
+# One test process for the file: the tests share compiled programs (the "force" and
+# "unload" Jacobians: one pair; the reverse gradient: the "force" scene's).
+pytestmark = pytest.mark.xdist_group("forward_mode")
 
 
 LOADINGS = {

@@ -5,10 +5,14 @@ The cases are `benchmarks/gradient_matrix.py`'s: the default selection runs its
 program, tangential program, material, slip law, time scheme, periodic grid,
 `jc.Surface`, the parameter, and `jit` / eager `grad` / forward-mode `jvp` / `vmap` /
 float32), the slow selection the rest of `default_slice()` (every value twice) and the
-whole matrix. They run compiled as
-users compile: without the default selection's quick-compile flags
-(`tests/conftest.py`), whose code generation changes round-off. Each case runs in a
-process of its own, so that the test workers share them out.
+whole matrix. Each runs in a process of its own or shares one with a few others: the
+quick slice's cases in `QUICK_CHUNKS` processes (one xdist group each: the test
+workers share the chunks out, and a chunk's cases share its process's start, imports
+and small programs), compiled as the rest of the default selection (its quick-compile
+flags, `tests/conftest.py`: a third of the compile time); every slow case alone,
+compiled as users compile (without those flags, whose code generation changes
+round-off), so the slow selection checks every case of the quick slice that way too
+(`test_whole_gradient_matrix`).
 
 Each gradient must be within 1e-5 (float64; 1e-2 float32) of the central difference of
 a forward solved to `rtol = 1e-10`, relative to the larger of the two (plus a floor
@@ -17,6 +21,7 @@ gradients to 1e-8. A scene on an active-set change may instead match one of its
 one-sided differences (to 1e-3): these are listed in `KNOWN_KINKS`, and must be kinks.
 """
 
+import functools
 import json
 import os
 import subprocess
@@ -34,7 +39,8 @@ import gradient_matrix as gm  # noqa: E402
 # Scenes of the matrix that sit on an active-set change at their parameter value: their
 # one-sided differences (Richardson, h = 1e-4 relative) differ by 0.2 % and 1.2 %, and
 # the gradient equals one of them to 4e-10 and 2e-8 (benchmarks/results/
-# gradient_matrix.json); the first one's central difference at h = 1e-5 equals it too.
+# gradient_matrix/intel_xeon.json); the first one's central difference at h = 1e-5
+# equals it too.
 KNOWN_KINKS = {
     "x/force-ramp/force_neg/zener/load/vmap",
     "full/force-constant/force_past/prony/friction/jit/periodic",
@@ -121,11 +127,52 @@ def test_the_quick_slice_covers_every_axis_value_once():
             assert any(getattr(c, field) == value for c in quick), (field, value)
 
 
+# The quick slice in this many processes: QUICK's cases dealt out in turn, the coupled
+# ones first (they take most of the compile time), so the chunks take similar times.
+QUICK_CHUNKS = 4
+_CHUNK = {name: k % QUICK_CHUNKS for k, name in enumerate(
+    sorted(gm.QUICK, key=lambda name: name.startswith("none/")))}
+# Run with `python -c`: the rows of the cases named after the output path, the file
+# rewritten after each case (a crash leaves the rows before it).
+_CHUNK_DRIVER = """
+import json, sys
+sys.path.insert(0, sys.argv[1])
+import gradient_matrix as gm
+cases = {c.name: c for c in gm.default_slice()}
+rows = []
+for name in sys.argv[3:]:
+    rows.append(gm.check(cases[name]))
+    with open(sys.argv[2], "w") as f:
+        json.dump(rows, f)
+"""
+
+
+@functools.cache
+def _chunk_rows(k, folder):
+    """`({name: row}, stderr tail)` of the quick slice's chunk `k`, computed in one
+    fresh process with this process's compile settings (once per test process: the
+    chunk's tests are one xdist group); a case the process did not reach (it crashed)
+    has no row."""
+    names = [name for name in _CHUNK if _CHUNK[name] == k]
+    out = folder / f"gradient_matrix_chunk{k}.json"
+    run = subprocess.run(
+        [sys.executable, "-c", _CHUNK_DRIVER, str(ROOT / "benchmarks"), str(out),
+         *names], capture_output=True, text=True, timeout=1200 * len(names))
+    rows = json.loads(out.read_text()) if out.exists() else []
+    return {row["name"]: row for row in rows}, run.stderr[-3000:]
+
+
 @pytest.mark.parametrize("case", [
-    c if c.name in gm.QUICK else pytest.param(c, marks=pytest.mark.slow)
+    pytest.param(c, marks=pytest.mark.xdist_group(f"gradient_matrix_{_CHUNK[c.name]}"))
+    if c.name in gm.QUICK else pytest.param(c, marks=pytest.mark.slow)
     for c in gm.default_slice()], ids=lambda c: c.name)
-def test_gradient_against_central_differences(case, tmp_path):
-    _assert_right(case, _run(case, tmp_path))
+def test_gradient_against_central_differences(case, tmp_path, tmp_path_factory):
+    if case.name in gm.QUICK:
+        rows, stderr = _chunk_rows(_CHUNK[case.name], tmp_path_factory.getbasetemp())
+        assert case.name in rows, stderr
+        _assert_right(case, rows[case.name])
+    else:
+        _assert_right(case, _run(case, tmp_path))
 
 
 @pytest.mark.slow

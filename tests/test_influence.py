@@ -3,7 +3,7 @@
 `C[i, j](x, y)` is the displacement `i` (x, y, z; z into the body) at the surface point
 `(x, y)` due to a uniform unit traction `j` on the cell `[-dx/2, dx/2] x [-dy/2, dy/2]`
 of a half-space with unit shear modulus. The reference values below integrate the
-Boussinesq/Cerruti point-force kernels of DESIGN.md section 1 (written out here
+Boussinesq/Cerruti point-force kernels of Johnson (1985) (written out here
 independently of the library) numerically over the cell with `scipy.integrate`.
 """
 
@@ -24,7 +24,7 @@ _QUAD = dict(epsabs=1e-15, epsrel=1e-13, norm="max")
 
 
 # --------------------------------------------------------------------------------------
-# Reference: point-force kernels of DESIGN.md section 1 (Johnson eqs. 3.19, 3.86-3.87)
+# Reference: point-force kernels (Johnson 1985, eqs. 3.19, 3.86-3.87)
 # --------------------------------------------------------------------------------------
 
 

@@ -38,6 +38,10 @@ from jaxcontact._solver.normal import hertzian_guess
 from jaxcontact._solver.precondition import block_preconditioner, continuum_symbols
 
 
+# The tests share cached solutions and their compiled programs (functools.cache):
+# one test process runs them all (an xdist group, see tests/conftest.py).
+pytestmark = pytest.mark.xdist_group("joint")
+
 R, W, G, NU, MU = 10e-3, 0.15, 1e6, 0.3, 0.3
 RTOL = 1e-8
 N = 32

@@ -2,7 +2,7 @@ r"""Frictional partial slip: Cattaneo-Mindlin, Coulomb's law pointwise, coupled 
 loading (Spence), the dense reference solver, friction laws, gross sliding.
 
 Every test states a physical or numerical fact with its tolerance. Conventions
-(DESIGN.md 1, 3): z points into the half-space; `sol.shear` is the traction ON the
+(docs/conventions.md): z points into the half-space; `sol.shear` is the traction ON the
 half-space; the slip is `s = u_t - delta_t` (surface tangential displacement minus the
 rigid tangential displacement of the indenter), and the incremental Coulomb law acts on
 the slip increment `Ds_k = s_k - s_{k-1}`: `Ds = 0` in stick cells, `q = -mu p Ds/|Ds|`
@@ -26,7 +26,7 @@ ratio, friction, grid size) reuse one compiled program: every normal ramp runs o
 40-step time axis whose load ramps in `m` increments and is then held (holding a load
 is a no-op under the incremental law, which is itself checked).
 
-Parameters (as in DESIGN.md and the paper's elastic checks): rigid sphere R = 10 mm,
+Parameters (as in the paper's elastic checks): rigid sphere R = 10 mm,
 G = 1 MPa, nu = 0.3, W = 0.15 N, mu = 0.3, grid of 4 Hertz radii unless stated.
 """
 
@@ -51,6 +51,10 @@ import jaxcontact as jc
 
 
 R, W, G, NU, MU = 10e-3, 0.15, 1e6, 0.3, 0.3
+# The tests share cached solutions and their compiled programs (functools.cache):
+# one test process runs them all (an xdist group, see tests/conftest.py).
+pytestmark = pytest.mark.xdist_group("partial_slip")
+
 RTOL = 1e-8  # jc.solve's default in float64
 
 
@@ -293,9 +297,10 @@ def test_cattaneo_mindlin_shear_profile():
 
 
 def test_cattaneo_mindlin_compliance():
-    """Rigid sphere on ONE elastic body (DESIGN.md 7): delta_x = 3 mu W (2 - nu) /
-    (16 G a) [1 - (1 - F/(mu W))^(2/3)], within 1 % (the discrete contact radius is
-    within 0.6 % of Hertz's at n = 128). Measured: within 1e-4."""
+    """Rigid sphere on ONE elastic body (half of Johnson's two-body value):
+    delta_x = 3 mu W (2 - nu) / (16 G a) [1 - (1 - F/(mu W))^(2/3)], within 1 % (the
+    discrete contact radius is within 0.6 % of Hertz's at n = 128). Measured: within
+    1e-4."""
     sc, sol, ratios = cattaneo_mindlin_128()
     a = hertz_radius()
     d_th = 3 * MU * W * (2 - NU) / (16 * G * a) * (1 - (1 - ratios) ** (2 / 3))
@@ -383,7 +388,7 @@ def test_coupled_normal_load_stick_disc():
     with the square grid's symmetries; shear radial and pointing outward.
 
     Why outward: a normal point load moves the surface points towards it, u_r =
-    -(1 - 2 nu) / (4 pi G r) per unit force (Johnson eq. 3.19; DESIGN.md 1), so under
+    -(1 - 2 nu) / (4 pi G r) per unit force (Johnson eq. 3.19), so under
     the pressure the half-space surface contracts radially inward while the rigid
     indenter (delta_t = 0) does not move tangentially. In the slip annulus the surface
     therefore slips inward relative to the indenter and the friction ON the half-space
@@ -470,7 +475,7 @@ def test_spence_self_similar():
     self-similar, c/a independent of the load. W in 40 increments (nu = 0.3, mu =
     0.3); over the second half of the ramp (a from 0.79 a_W to a_W, 12.7 to 16 cells)
     c/a stays within one cell at the final radius, dx/a_W = 1/16 (measured ptp 0.035),
-    and its mean is DESIGN.md's value (measured 0.896). c and a are the equivalent
+    and its mean is Spence's value (measured 0.896). c and a are the equivalent
     radii of the stick and contact areas."""
     m = 40
     sc, sol, _ = normal_ramp(m)
@@ -478,7 +483,8 @@ def test_spence_self_similar():
     dx_a = float(sc.grid.spacing[0]) / hertz_radius()
     second = ca[m // 2 :]
     assert np.ptp(second) <= dx_a, np.ptp(second)
-    # DESIGN.md 3: stick area ratio 0.78-0.81, c/a = 0.883-0.900, +- half a cell
+    # Spence (1975), incremental law: stick area ratio 0.78-0.81, c/a = 0.883-0.900,
+    # +- half a cell
     assert 0.883 - dx_a / 2 <= second.mean() <= 0.900 + dx_a / 2, second.mean()
 
 
@@ -499,9 +505,10 @@ def test_spence_published_point():
 
 
 def test_one_step_vs_ramped_stick_ratio():
-    """DESIGN.md 3 (nu = 0.3, mu = 0.3): stick area ratio ~0.29 when W is applied in one
-    step, ~0.78-0.81 when ramped in 10-40 increments. Tolerance: the stick boundary is
-    resolved to half a cell, so the ratio (c/a)^2 to 2 (c/a) (dx/2)/a = (c/a) dx/a
+    """The slip law's path dependence (nu = 0.3, mu = 0.3): stick area ratio ~0.29
+    when W is applied in one step, ~0.78-0.81 when ramped in 10-40 increments.
+    Tolerance: the stick boundary is resolved to half a cell, so the ratio (c/a)^2
+    to 2 (c/a) (dx/2)/a = (c/a) dx/a
     (0.033 one-step, 0.056 ramped; a = 16 cells). Measured: 0.274; 0.782 (10),
     0.802 (20), 0.812 (40)."""
     sc, one, _ = normal_ramp(1)

@@ -1,5 +1,5 @@
 """`jc.presets`: every preset builds; its parameters are the paper's (converted to true
-shear moduli: the paper lists 2G, DESIGN.md section 1), checked against the values the
+shear moduli: the paper lists 2G, docs/conventions.md), checked against the values the
 paper quotes (Tables 1-2: a0, p0; Eq. 28 from Eq. 27; the ratios of section 4.1); a few
 presets solved at tiny size behave as physics says.
 
@@ -323,7 +323,7 @@ def test_coupled_normal_preset_partial_slip():
     assert np.abs(np.asarray(sol.tangential_force)).max() < 1e-9
     ratio = np.asarray(sol.stick_ratio)
     # One-step loading with the total slip law: stick area / contact area ~0.29
-    # (DESIGN.md 3, nu = mu = 0.3); the 24-cell grid resolves it to +-0.05 (measured
+    # (nu = mu = 0.3); the 24-cell grid resolves it to +-0.05 (measured
     # 0.27-0.29 over the 5 steps).
     np.testing.assert_allclose(ratio, 0.29, atol=0.05)
 

@@ -233,9 +233,10 @@ def _stick_ratio(res, k=-1):
 def test_incremental_vs_total():
     """One-step loading: same result under both laws (the previous slip is 0). Ramped:
     the total law is path independent (same as one step), the incremental law is not.
-    DESIGN.md 3 (fine grid): stick area ratio ~0.29 one-step, ~0.78-0.81 ramped. The
-    coarse grids here underestimate both (grid of 2.5 a): n = 16: 0.258 / 0.710;
-    n = 20 (this test): 0.250 / 0.712 (10 increments); n = 24: 0.282 / 0.761 (10) and
+    The slip law's path dependence (fine grid): stick area ratio ~0.29 one-step,
+    ~0.78-0.81 ramped. The coarse grids here underestimate both (grid of 2.5 a):
+    n = 16: 0.258 / 0.710; n = 20 (this test): 0.250 / 0.712 (10 increments);
+    n = 24: 0.282 / 0.761 (10) and
     0.789 (20); n = 32: 0.296 / 0.784 (10) and 0.800 (20)."""
     n, nu, mu, nt = 20, 0.3, 0.3, 10
     a, size, h0, C = setup(n, nu)

@@ -21,6 +21,10 @@ from helpers import run_on_host_devices, zener
 import jaxcontact as jc
 
 
+# The tests share cached solutions and their compiled programs (functools.cache):
+# one test process runs them all (an xdist group, see tests/conftest.py).
+pytestmark = pytest.mark.xdist_group("sweep")
+
 RTOL = 1e-12
 MU_0 = (0.25e6, 0.5e6, 1.0e6)  # Pa: three Zener materials (paper Eqs. 29-30 family)
 # Three steps of 2/3 tau: too long for the piecewise-constant scheme with these

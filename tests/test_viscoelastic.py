@@ -5,9 +5,9 @@ observed order of both time schemes, and the equivalence of the history paths.
 Every test states a physical or numerical fact and its tolerance; the numbers measured
 when the tolerances were set are quoted next to them (float64, rtol 1e-8).
 
-Units and conversions (DESIGN.md 1): moduli are TRUE shear moduli. The paper's tables
-list twice the shear modulus (its a0 and p0 come out only with E* = G_paper / (1 - nu)),
-so every paper value is halved here:
+Units and conversions (docs/conventions.md): moduli are TRUE shear moduli. The
+paper's tables list twice the shear modulus (its a0 and p0 come out only with
+E* = G_paper / (1 - nu)), so every paper value is halved here:
 
 - Table 1 (Maxwell, paper Eqs. 22-23): G = 81.92 / 2 = 40.96 GPa, eta = 81.92 / 2 =
   40.96 GPa s (tau = eta / G = 1 s is unchanged), nu = 0.5, R = 3.5 mm, W = 100 N:
@@ -60,6 +60,10 @@ import jaxcontact as jc
 from jaxcontact._history import ElasticHistory, RecursiveHistory
 from jaxcontact._history import history_for as _history_for
 
+
+# The tests share cached solutions and their compiled programs (functools.cache):
+# one test process runs them all (an xdist group, see tests/conftest.py).
+pytestmark = pytest.mark.xdist_group("viscoelastic")
 
 RTOL = 1e-8  # jc.solve's default in float64
 
