@@ -1,9 +1,13 @@
-"""Fits on rings against fits on the grid (issue 48, item 3): the time of one curve's
-fit after compilation, and what each gets right.
+"""The ring solver against the grid solver: the run time of a solve at its error, and
+of a fit after compilation (issue 48, items 3 and 5).
 
-Two parts, float64, one process (the second fit of a case reuses the first's
+Three parts, float64, one process (a second call of a case reuses the first's
 compiled programs):
 
+- `solvers`: one viscoelastic history (`solver_rows`: Zener, a displacement ramp
+  then hold, 40 steps, scheme "linear") for a sphere and a cone, solved on 16..512
+  rings and on 32^2..256^2 grids: the compiled solve's seconds and its largest
+  relative force error against 2048 rings.
 - `synthetic`: `jc.fit_prony` of the PMMA step of `benchmarks/fit.py` (sphere
   R = 3.5 mm, 2 arms, 20 um held 500 s, 40 times, scheme "constant"), its force made
   on 512 rings (the reference: 1e-6 of the force) plus `--noise` relative white
@@ -16,7 +20,8 @@ compiled programs):
   command line's defaults (R = 5 um), on rings and (`--grid-real`) on the 32^2 grid:
   the first call (compilation) and the second (compiled), the verdict and E(T).
 
-    python benchmarks/rings.py [--rings 64] [--grids 32,64] [--grid-real]
+    python benchmarks/rings.py [--parts solvers,synthetic,real] [--rings 64]
+                               [--grids 32,64] [--grid-real]
 
 Writes `benchmarks/results/rings/<machine>.json` (layout: `results/SCHEMA.md`; rows
 tagged by `part`). The machine is shared: the load average is recorded with each
@@ -94,6 +99,68 @@ def synthetic(solver, size, noise, nt=40, seed=0):
             "ring_radius_m": fit.ring_radius}
 
 
+def _timed(fn):
+    """`(result, seconds of the compiled call)`: the first call compiles, the median
+    of three more is the time."""
+    out = jax.block_until_ready(fn())
+    times = []
+    for _ in range(3):
+        start = time.perf_counter()
+        jax.block_until_ready(fn())
+        times.append(time.perf_counter() - start)
+    return out, float(np.median(times))
+
+
+def solver_rows(tip, ring_counts, grid_sizes, nt=40):
+    """Run time against error of the ring and grid solvers on one history: a Zener
+    body (relaxation 3:1, tau = half the run) indented by `tip` ("sphere" R = 1 or
+    "cone" of half-angle 70 deg) along a displacement ramp over half the run, then
+    held (the contact radius never shrinks), scheme "linear", float64. The errors:
+    the largest relative force error over the steps whose force is above 1e-3 of
+    the peak (the first steps of the ramp: a contact of a few cells or rings) and
+    the last step's, against the same history on 2048 rings (its own error, second
+    order, is ~1e-7 of the force);
+    the grid is 2 x 1.25 the final contact radius wide, the rings cover half that
+    width."""
+    from jaxcontact._solve_rings import solve_axisymmetric
+
+    material = jc.Zener(mu_inf=1.0, mu_0=0.5, tau=0.5, poisson=0.3)
+    times = jnp.linspace(0.0, 1.0, nt)
+    depth = 0.02 * jnp.minimum(times / 0.5, 1.0)
+    if tip == "sphere":
+        indenter, contact = jc.Sphere(1.0), float(np.sqrt(0.02))
+    else:
+        alpha = np.deg2rad(70.0)
+        indenter, contact = jc.Cone(alpha), float(2 * 0.02 * np.tan(alpha) / np.pi)
+    side = 2 * 1.25 * contact
+
+    def scene(n):
+        return jc.Scene(jc.Grid((n, n), side), indenter, material, times,
+                        normal=jc.Displacement(depth))
+
+    ref = np.asarray(solve_axisymmetric(scene(16), rings=2048, scheme="linear")
+                     .normal_force)
+    used = ref > 1e-3 * ref.max()
+    rows = []
+    for solver, sizes in (("rings", ring_counts), ("grid", grid_sizes)):
+        for n in sizes:
+            if solver == "rings":
+                run = jax.jit(lambda n=n: solve_axisymmetric(
+                    scene(16), rings=n, scheme="linear").normal_force)
+            else:
+                run = jax.jit(lambda n=n: jc.solve(scene(n), scheme="linear")
+                              .normal_force)
+            force, seconds = _timed(run)
+            rel = np.abs(np.asarray(force)[used] / ref[used] - 1)
+            rows.append({"tip": tip, "solver": solver, "size": int(n), "nt": nt,
+                         "max_relative_force_error": float(rel.max()),
+                         "final_relative_force_error": float(rel[-1]),
+                         "solve_s_compiled": round(seconds, 5),
+                         "load_average_1min": load()})
+            print(rows[-1], flush=True)
+    return rows
+
+
 def real(name, solver, rings):
     """One row: `fit_afm_curve` of a committed file, twice (cold, compiled)."""
     from jaxcontact.fitting.afm import AFMFitSettings, fit_afm_curve
@@ -129,7 +196,7 @@ def main():
     p.add_argument("--noise", type=float, default=0.005)
     p.add_argument("--grid-real", action="store_true",
                    help="also fit the real files on the 32^2 grid (minutes)")
-    p.add_argument("--parts", default="synthetic,real")
+    p.add_argument("--parts", default="solvers,synthetic,real")
     args = p.parse_args()
     parts = args.parts.split(",")
     record = header("rings")
@@ -144,6 +211,10 @@ def main():
             print(row, flush=True)
             found.append(row)
         rows += part_rows("synthetic", found)
+    if "solvers" in parts:
+        for tip in ("sphere", "cone"):
+            rows += part_rows("solvers", solver_rows(
+                tip, (16, 32, 64, 128, 256, 512), (32, 64, 128, 256)))
     if "real" in parts:
         found = []
         for name in FILES:

@@ -69,13 +69,13 @@ class FitOptions:
     - `check_grid` (default `False`): also solve the fitted model at twice the
       resolution (a grid twice as fine, or twice the rings; one more compilation)
       and report the difference (`jc.PronyFit.discretisation`).
-    - `solver`: the contact model's discretisation: `"grid"` (default here; the
-      AFM pipeline, `jc.AFMFitSettings`, defaults to `"auto"`) solves on the
-      template's grid; `"auto"` solves a frictionless axisymmetric probe
-      (`jc.Sphere`, `jc.Cone`, ...) on `rings` rings (`solve_axisymmetric`: a 1-D
-      problem, 10-100x faster than the grid at the same accuracy) and anything
-      else on the grid; `"rings"` forces the rings (a `ValueError` where they
-      cannot solve the scene). `jc.PronyFit.solver` says which ran.
+    - `solver`: the contact model's discretisation. `"auto"` (default) solves a
+      frictionless axisymmetric probe (`jc.Sphere`, `jc.Cone`, ...) on `rings`
+      rings (`solve_axisymmetric`: a 1-D problem, at the grid's accuracy in a
+      small fraction of its time, `benchmarks/rings.py`) and anything else on the
+      template's grid; `"grid"` always solves on the template's grid; `"rings"`
+      forces the rings (a `ValueError` naming why where they cannot solve the
+      scene). `jc.PronyFit.solver` says which ran.
     - `rings` (default 64, >= 4): rings of equal width over `RING_MARGIN` (1.25)
       times the radius where the probe's profile reaches the deepest indentation.
     """
@@ -89,7 +89,7 @@ class FitOptions:
     lm_steps: int = 100
     solve_options: dict | None = None
     check_grid: bool = False
-    solver: str = "grid"
+    solver: str = "auto"
     rings: int = 64
 
     def __post_init__(self):
