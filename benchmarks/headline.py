@@ -116,6 +116,12 @@ def fit_cli(r):
     return f"E(T) {e['value']:.0f} +- {e['std']:.0f} Pa, {row['seconds']:.0f} s"
 
 
+def ring_fit(r):
+    rings = _row(r, "synthetic", solver="rings", size=64)["fit_s_compiled"]
+    grid = _row(r, "synthetic", solver="grid", size=64)["fit_s_compiled"]
+    return f"{rings:.2f} s compiled on 64 rings ({grid:.1f} s on 64^2)"
+
+
 def force_map(r):
     return f"{r['summary']['warm_mean_s']:.1f} s a curve (warm)"
 
@@ -146,6 +152,8 @@ ENTRIES = [
     ("fit/intel_xeon_lm.json", "Prony fit of the PMMA step, 64^2 x 40, LM", fit),
     ("fit_cli_real_files/intel_xeon.json", "`jaxcontact fit` on the creep file",
      fit_cli),
+    ("rings/intel_xeon.json", "Prony fit of the PMMA step on rings, 40 samples",
+     ring_fit),
     ("force_map/intel_xeon.json", "`jc.fit_force_map`, 4-curve QI map", force_map),
 ]
 
