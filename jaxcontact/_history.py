@@ -160,3 +160,16 @@ def constant_scheme_amplification(series, dt: float) -> float:
         return 0.0
     m = np.diag(q) - np.outer(np.ones_like(q), c) / glassy
     return float(np.max(np.abs(np.linalg.eigvals(m))))
+
+
+def check_time_options(throw, history: str, scheme: str) -> None:
+    """The options of a time-stepping solve (`jc.solve`, `solve_axisymmetric`):
+    `throw` a bool (`TypeError`), `history` "auto" / "recursive" / "direct" and
+    `scheme` "constant" / "linear" (`ValueError` naming the value)."""
+    if not isinstance(throw, bool):
+        raise TypeError(f"throw must be a bool, got {throw!r}")
+    if history not in ("auto", "recursive", "direct"):
+        raise ValueError(
+            f'history must be "auto", "recursive" or "direct", got {history!r}')
+    if scheme not in ("constant", "linear"):
+        raise ValueError(f'scheme must be "constant" or "linear", got {scheme!r}')

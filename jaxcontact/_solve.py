@@ -10,7 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import _validate
-from ._history import constant_scheme_amplification, history_for
+from ._history import check_time_options, constant_scheme_amplification, history_for
 from ._loading import Force
 from ._material.elastic import Elastic
 from ._operator import HalfSpace
@@ -342,13 +342,7 @@ def solve(
         adjoint = ImplicitAdjoint()
     elif not isinstance(adjoint, ImplicitAdjoint):
         raise TypeError(f"adjoint must be a jc.ImplicitAdjoint, got {adjoint!r}")
-    if not isinstance(throw, bool):
-        raise TypeError(f"throw must be a bool, got {throw!r}")
-    if history not in ("auto", "recursive", "direct"):
-        raise ValueError(
-            f'history must be "auto", "recursive" or "direct", got {history!r}')
-    if scheme not in ("constant", "linear"):
-        raise ValueError(f'scheme must be "constant" or "linear", got {scheme!r}')
+    check_time_options(throw, history, scheme)
     if rtol is not None:
         _validate.tolerance("rtol", rtol)
     if scheme == "constant":

@@ -18,7 +18,7 @@ import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
 from . import _validate
-from ._history import history_for
+from ._history import check_time_options, history_for
 from ._indenter import AbstractAxisymmetricIndenter
 from ._loading import Force
 from ._ring_operator import RingOperator, rings_to_grid
@@ -247,13 +247,7 @@ def solve_axisymmetric(
         solver = RingPolonskyKeer()
     elif not isinstance(solver, RingPolonskyKeer):
         raise TypeError(f"solver must be a RingPolonskyKeer, got {solver!r}")
-    if not isinstance(throw, bool):
-        raise TypeError(f"throw must be a bool, got {throw!r}")
-    if history not in ("auto", "recursive", "direct"):
-        raise ValueError(
-            f'history must be "auto", "recursive" or "direct", got {history!r}')
-    if scheme not in ("constant", "linear"):
-        raise ValueError(f'scheme must be "constant" or "linear", got {scheme!r}')
+    check_time_options(throw, history, scheme)
     with _validate.clear_runtime_errors():
         runtime_checks = not check_targets(scene)
         sol = _solve_rings(scene, operator, solver, history, scheme, runtime_checks,
