@@ -28,7 +28,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import re
 import resource
 import runpy
 import sys
@@ -43,7 +42,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from _common import RESULTS, header  # noqa: E402
+from _common import RESULTS, header, write_results  # noqa: E402
 
 
 NOTEBOOK = ROOT / "notebooks" / "paper_reproduction.py"
@@ -51,18 +50,6 @@ SIZES = ("ci", "small", "paper")
 VALUES = ("holds", "partly", "differs")
 # the fields of a verdict row before its numbers
 FIELDS = ("study", "claim", "quantity", "criterion", "verdict", "ours", "paper", "why")
-
-
-def machine_name(info: dict) -> str:
-    """A short file name for the machine: the accelerator's kind, or the CPU's maker
-    and family (`intel_xeon`, as the other results files)."""
-    if info.get("backend") not in (None, "cpu") and info.get("device_kind"):
-        words = re.findall(r"[a-z0-9]+", info["device_kind"].lower())
-    else:
-        model = re.sub(r"\((r|tm)\)|@.*|\bcpu\b|\bprocessor\b", " ",
-                       str(info.get("processor", "")).lower())
-        words = re.findall(r"[a-z0-9]+", model)[:2]
-    return "_".join(words) or "machine"
 
 
 def rows_of(verdicts) -> list[dict]:
@@ -120,7 +107,8 @@ def main(argv=None) -> int:
     with open(partial, encoding="utf-8") as f:
         nb = json.load(f)
 
-    result = header("paper", argv)
+    variant = None if args.size == "paper" else args.size
+    result = header("paper", argv, variant=variant)
     result["machine"]["load_before"] = load_before
     result["machine"]["load_after"] = list(os.getloadavg())
     verdicts = nb["verdicts"]
@@ -150,13 +138,9 @@ def main(argv=None) -> int:
     result["checks"] = nb["checks"]
     result["solves"] = nb["solves"]
 
-    name = args.name or (machine_name(result["machine"])
-                         + ("" if args.size == "paper" else f"_{args.size}"))
-    path = args.out / f"{name}.json"
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "w", encoding="utf-8") as f:
-        json.dump(result, f, indent=1)
-        f.write("\n")
+    name = args.name or (result["machine"]["name"]
+                         + ("" if variant is None else f"_{variant}"))
+    path = write_results(result, args.out / f"{name}.json")
     print(f"wrote {path}: " + ", ".join(f"{n} {v}" for v, n in counts.items())
           + f" of {len(verdicts)} at {nb['grid']}^2, {seconds:.0f} s")
     if error:
