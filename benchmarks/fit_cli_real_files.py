@@ -7,7 +7,8 @@ height clamp; probe radius 5 um as everywhere in the docs) it runs, as a user wo
 
     jaxcontact fit FILE --radius 5e-6 --out DIR --overwrite        (the defaults)
     jaxcontact fit FILE --radius 5e-6 --samples 16,48,8 ...        (twice the bins)
-    jaxcontact fit FILE --radius 5e-6 --n 48 ...                   (a finer grid)
+    jaxcontact fit FILE --radius 5e-6 --rings 128 ...              (twice the rings)
+    jaxcontact fit FILE --radius 5e-6 --solver grid [--n 48] ...   (grid 32^2, 48^2)
     jaxcontact fit FILE --radius 5e-6 --segments approach,hold,retract ...
 
 and keeps from each JSON the quality verdict, the flags, the Young's moduli with their
@@ -45,7 +46,9 @@ ROOT = Path(__file__).resolve().parent.parent
 DATA = ROOT / "tests" / "data"
 FILES = {"creep": DATA / "fmt-jpk-cc_pr14-polymergel-2021.06.30.jpk-force",
          "relaxation": DATA / "fmt-jpk-sr_cell1-0008.jpk-force"}
-SETTINGS = {"defaults": [], "bins x2": ["--samples", "16,48,8"], "n 48": ["--n", "48"],
+SETTINGS = {"defaults": [], "bins x2": ["--samples", "16,48,8"],
+            "rings 128": ["--rings", "128"],
+            "grid 32": ["--solver", "grid"], "n 48": ["--solver", "grid", "--n", "48"],
             "with retract": ["--segments", "approach,hold,retract"]}
 MODULI = ("E_at_approach_Pa", "E_inf_Pa", "E_0_Pa")
 BEGIN = "<!-- fit_cli_real_files.py: begin -->"

@@ -4,10 +4,10 @@ per curve, the first with compilation, the rest reusing (or not) its programs.
 The map: `tests/data/fmt-jpk-fd_2020.02.07-16.29.05.036.jpk-qi-data` (4 curves of a
 JPK QI map, force-distance, no hold; see tests/data/README.md), radius 5 um (an
 input), the settings `AFMFitSettings(radius=5e-6)` = the command line's defaults
-(32^2 grid, 8 approach bins, 1..3 arms by BIC, tau bounded to what the data resolve,
-the grid check and the analysis refits; default segments: approach and hold, i.e.
-the approach alone here), float64, no persistent compilation cache (every program
-compiles in this process).
+(64 rings, `--solver grid`: the 32^2 grid; 8 approach bins, 1..3 arms by BIC, tau
+bounded to what the data resolve, the discretisation check and the analysis refits;
+default segments: approach and hold, i.e. the approach alone here), float64, no
+persistent compilation cache (every program compiles in this process).
 
 Two passes over the map in one process: the first (cold: the first curve compiles
 the pipeline's programs; a later curve compiles what its own shapes or optimiser
@@ -17,9 +17,10 @@ Each curve's compilations are counted from JAX's compile log
 
 Usage::
 
-    python benchmarks/force_map.py [--passes 2] [--tiny]
+    python benchmarks/force_map.py [--passes 2] [--tiny] [--solver auto|rings|grid]
 
-Writes `benchmarks/results/force_map/<machine>.json` (`--tiny`: `<machine>_tiny.json`;
+Writes `benchmarks/results/force_map/<machine>.json` (`--tiny`: `<machine>_tiny.json`,
+`--solver grid`: `<machine>_grid.json`;
 layout: `results/SCHEMA.md`: a row per
 pass and curve, with the stages' seconds: the fits for each arm count, the analysis
 refits, the grid check, the raw residual).
@@ -77,7 +78,7 @@ class StageTimes:
         from jaxcontact.fitting import afm
 
         self.seconds = collections.Counter()
-        fit, disc = afm._Problem.fit, afm._Problem.discretisation
+        fit, disc = afm._Problem.fit, afm._Problem.grid_bias
         raw, unc = afm.raw_residual, afm.analysis_uncertainty
         depth = [0]  # the refits inside analysis_uncertainty are counted there
 
@@ -95,7 +96,7 @@ class StageTimes:
             return wrapper
 
         afm._Problem.fit = timed(fit, lambda a: f"fit_arms{a[1]}_s")
-        afm._Problem.discretisation = timed(disc, "grid_check_s")
+        afm._Problem.grid_bias = timed(disc, "discretisation_check_s")
         afm.raw_residual = timed(raw, "raw_residual_s")
         afm.analysis_uncertainty = timed(unc, "analysis_refits_s")
 
@@ -108,6 +109,9 @@ class StageTimes:
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--passes", type=int, default=2)
+    ap.add_argument("--solver", default="auto", choices=("auto", "rings", "grid"),
+                    help="the contact model (AFMFitSettings.solver; default auto: "
+                         "the rings); 'grid' writes <machine>_grid.json")
     ap.add_argument("--tiny", action="store_true",
                     help="tests/test_force_map.py's tiny settings (8^2, 8 approach "
                          "bins, 1 arm, no refits, no grid check) instead of the "
@@ -131,8 +135,11 @@ def main():
     from jaxcontact._force_map import _cell_values, fit_cell
 
     settings = (jc.AFMFitSettings(radius=RADIUS, n=8, samples=(8, 8, 4), arms=1,
-                                  analysis_uncertainty=False, check_grid=False)
-                if args.tiny else jc.AFMFitSettings(radius=RADIUS))
+                                  analysis_uncertainty=False, check_grid=False,
+                                  solver=args.solver)
+                if args.tiny else jc.AFMFitSettings(radius=RADIUS, solver=args.solver))
+    variant = "_".join(v for v in ("tiny" if args.tiny else "",
+                                   "grid" if args.solver == "grid" else "") if v)
     stages = StageTimes()
     load_before = os.getloadavg()
     with warnings.catch_warnings():
@@ -154,6 +161,7 @@ def main():
                    "x": int(c.metadata["grid index x"]),
                    "y": int(c.metadata["grid index y"]),
                    "raw_samples_in_contact": int(curve.time.size),
+                   "solver": (result["report"] or {}).get("solver"),
                    "read_s": round(t_read, 3), "fit_s": round(result["seconds"], 3),
                    "cpu_s": round(cpu, 3),
                    "load_average_1min": round(os.getloadavg()[0], 2),
@@ -174,10 +182,13 @@ def main():
                     residual_over_noise=v["residual_over_noise"],
                     arms_at_a_bound=" ".join(
                         a for a, ic in r["information_criteria"].items()
-                        if ic["at_bounds"]),
+                        if ic.get("at_bounds")),
                     arms_not_converged=" ".join(
                         a for a, ic in r["information_criteria"].items()
-                        if not ic["converged"]),
+                        if not ic.get("converged", True)),
+                    arms_failed=" ".join(
+                        a for a, ic in r["information_criteria"].items()
+                        if "error" in ic),
                     flag_text="; ".join(r["flags"]))
             else:
                 row.update(quality="not fitted", flags=1, error=result["error"])
@@ -207,9 +218,9 @@ def main():
                 "an extrapolation, not a measurement: 4096 x the warm mean per curve "
                 "of these 4 curves, on this CPU, one process, no Dask; the "
                 "compilation (here cold total - 4 x warm mean) comes on top once, and "
-                "again for every raw sample count in contact, bin count or optimiser "
-                "path not seen before")})
-    result = {**header("force_map", variant="tiny" if args.tiny else None),
+                "again for every bin count or optimiser path not seen before (the "
+                "raw residual is solved at a power-of-two length)")})
+    result = {**header("force_map", variant=variant or None),
               "settings": {"map": str(MAP.relative_to(ROOT)),
                            **json.loads(json.dumps(vars(settings), default=list)),
                            "contact": "viscoelastic", "baseline": "constant",

@@ -13,6 +13,9 @@ on a domain of 4 a) with one value of each axis:
   creep series (`Prony.from_creep`);
 - `slip`: incremental or total; `scheme`: constant or linear; a periodic grid; a
   `jc.Surface` (a paraboloid with a bump) instead of the sphere;
+- `solver`: the grid (`jc.solve`'s default) or, for the frictionless normal scenes,
+  the axisymmetric ring solver (`jc.solve(..., solver=jc.RingPolonskyKeer())`,
+  named `rings`: its own implicit derivatives, reverse and forward mode);
 - `parameter` (the scalar differentiated): load scale, friction, modulus scale,
   relaxation-time scale, Poisson's ratio, radius scale, bump height, tangential scale;
 - `mode`: `jit` (`jit(value_and_grad)`), `grad` (`jax.grad`, eager), `jvp` (`jax.jvp`
@@ -39,13 +42,14 @@ Usage::
 
     python benchmarks/gradient_matrix.py                  # every case
     python benchmarks/gradient_matrix.py --slice default  # the default test suite's
+    python benchmarks/gradient_matrix.py --slice rings    # the ring solver's cases
     python benchmarks/gradient_matrix.py --only zener     # names containing "zener"
     python benchmarks/gradient_matrix.py --case NAME      # one case
 
 Results: `benchmarks/results/gradient_matrix/<machine>.json` (`--slice default`:
-`<machine>_default.json`, `--only` or `--case`: `<machine>_selection.json`; or `--out`;
-layout: `results/SCHEMA.md`: a row per case, the verdicts counted in `summary`), a
-table on stdout.
+`<machine>_default.json`, `--slice rings`: `<machine>_rings.json`, `--only` or
+`--case`: `<machine>_selection.json`; or `--out`; layout: `results/SCHEMA.md`: a row
+per case, the verdicts counted in `summary`), a table on stdout.
 """
 
 import argparse
@@ -96,6 +100,7 @@ class Case:
     parameter: str = "load"
     mode: str = "jit"
     output: str = "last"
+    solver: str = "grid"
 
     @property
     def name(self) -> str:
@@ -111,6 +116,8 @@ class Case:
             parts.append("surface")
         if self.output != "last":
             parts.append(self.output)
+        if self.solver != "grid":
+            parts.append(self.solver)
         return "/".join(parts)
 
     @property
@@ -215,9 +222,13 @@ def response(case: Case, sol: jc.Solution):
 def _function(case, dtype=jnp.float64, rtol=None, adjoint=None):
     def f(theta):
         kwargs = {} if rtol is None else dict(rtol=rtol)
+        if case.solver == "rings":  # its own implicit derivatives: no `adjoint`
+            kwargs, adjoint_ = dict(solver=jc.RingPolonskyKeer(rtol=rtol)), None
+        else:
+            adjoint_ = adjoint
         if case.scheme != "constant":
             kwargs["scheme"] = case.scheme
-        return response(case, jc.solve(scene(case, theta, dtype), adjoint=adjoint,
+        return response(case, jc.solve(scene(case, theta, dtype), adjoint=adjoint_,
                                        **kwargs))
     return f
 
@@ -374,6 +385,24 @@ def all_cases() -> list[Case]:
     add(Case(material="elastic", program="ramp", output="sum"))
     add(Case(coupling="full", tangential="force", material="prony", output="sum",
              parameter="friction"))
+    # The ring solver: frictionless normal scenes, every program, control and
+    # material, the sphere's parameters, every mode.
+    for normal in ("force", "displacement"):
+        for program in ("constant", "ramp", "unload"):
+            for material in ("elastic", "maxwell", "zener", "prony", "creep"):
+                parameter = "load" if material == "elastic" else "tau"
+                add(Case(normal=normal, program=program, material=material,
+                         parameter=parameter, solver="rings",
+                         output="sum" if program == "unload" else "last"))
+    for parameter in ("poisson", "radius", "modulus"):
+        add(Case(normal="displacement", material="maxwell", parameter=parameter,
+                 program="ramp", solver="rings"))
+    add(Case(material="zener", scheme="linear", parameter="tau", program="ramp",
+             solver="rings"))
+    for mode in ("grad", "jvp", "vmap", "float32"):
+        add(Case(material="elastic", program="ramp", mode=mode, solver="rings"))
+        add(Case(material="zener", normal="displacement", parameter="tau", mode=mode,
+                 solver="rings"))
     # Modes.
     for mode in ("grad", "jvp", "vmap", "float32"):
         add(Case(material="elastic", program="ramp", mode=mode))
@@ -461,6 +490,11 @@ def default_slice() -> list[Case]:
              parameter="friction", normal="displacement", slip="total"),
         Case(coupling="full", tangential="force_neg", material="maxwell",
              parameter="modulus", normal="displacement", program="ramp"),
+        # The ring solver.
+        Case(material="zener", parameter="tau", program="ramp", mode="jvp",
+             solver="rings"),
+        Case(normal="displacement", program="unload", material="prony",
+             parameter="tau", output="sum", solver="rings"),
     ]
 
 
@@ -485,6 +519,7 @@ QUICK = (
     "none/force-constant/force/elastic/friction/jit",
     "x/force-ramp/force_near/elastic/friction/jit",
     "x/force-constant/force_past/elastic/friction/jit",
+    "none/force-ramp/none/zener/tau/jvp/rings",
 )
 
 
@@ -513,13 +548,16 @@ def _or_nan(value):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--slice", choices=("all", "default"), default="all")
+    parser.add_argument("--slice", choices=("all", "default", "rings"), default="all",
+                        help="every case, the default suite's, or the ring solver's")
     parser.add_argument("--only", default=None,
                         help="names containing one of these comma-separated texts")
     parser.add_argument("--case", default=None, help="the one case of this name")
     parser.add_argument("--out", default=None, help="JSON path")
     args = parser.parse_args(argv)
-    cases = all_cases() if args.slice == "all" else default_slice()
+    cases = {"all": all_cases, "default": default_slice,
+             "rings": lambda: [c for c in all_cases() if c.solver == "rings"]}[
+                 args.slice]()
     if args.case:
         cases = [c for c in all_cases() + default_slice() if c.name == args.case][:1]
         if not cases:

@@ -141,6 +141,8 @@ ENTRIES = [
      gradients),
     ("gradient_matrix/intel_xeon.json", "gradients across 133 scenes",
      gradient_matrix),
+    ("gradient_matrix/intel_xeon_rings.json", "ring-solver gradients across 42 "
+     "scenes", gradient_matrix),
     ("fit/intel_xeon_lm.json", "Prony fit of the PMMA step, 64^2 x 40, LM", fit),
     ("fit_cli_real_files/intel_xeon.json", "`jaxcontact fit` on the creep file",
      fit_cli),

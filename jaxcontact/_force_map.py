@@ -176,6 +176,7 @@ def _settings_attrs(settings, baseline, contact) -> dict:
             "tau_bounds": json.dumps(s["tau_bounds"]), "start": settings.start,
             "steps": int(settings.steps), "check_grid": int(settings.check_grid),
             "analysis_uncertainty": int(settings.analysis_uncertainty),
+            "solver": settings.solver, "rings": int(settings.rings),
             "baseline": baseline, "contact": contact,
             "settings_json": json.dumps({**s, "baseline": baseline,
                                          "contact": contact}, default=list)}
@@ -299,14 +300,19 @@ def fit_force_map(source, radius=None, *, settings=None, client=None,
     n = len(raw)
     results = [None] * n
     todo = [k for k in range(n) if curves[k] is not None]
-    done = 0
+    done, started = 0, time.perf_counter()
 
     def finished(k, result):
         nonlocal done
         results[k] = result
         done += 1
         if progress:
-            print(_progress_line(done, n, ix[k], iy[k], result), file=sys.stderr,
+            elapsed = time.perf_counter() - started
+            # the remaining curves at the mean rate so far (the first curve's
+            # compilation included: an overestimate early on)
+            eta = elapsed / done * (n - done)
+            print(_progress_line(done, n, ix[k], iy[k], result)
+                  + f" [{elapsed:.0f} s elapsed, ~{eta:.0f} s left]", file=sys.stderr,
                   flush=True)
 
     for k, text in read_errors.items():

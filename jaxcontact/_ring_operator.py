@@ -25,6 +25,11 @@ Conventions match `HalfSpace`: unit shear modulus, the Poisson-independent part
 stored (`apply_normal` multiplies by `1 - nu`), displacement positive into the body.
 The rings only discretise the pressure: the half-space is infinite (no domain edge
 but the outermost ring, beyond which the pressure is zero).
+
+Scaling the edges by `s` scales `matrix` by `s` (`D` is cubic in the radii, the areas
+quadratic), `areas` by `s^2` and `inverse` by `s^-3`: a traced radius (a scene built
+inside `jit`) scales the operator of the unit radius, built in NumPy once per ring
+count (`RingOperator.scaled`).
 """
 
 import functools
@@ -130,15 +135,25 @@ class RingOperator(eqx.Module):
 
     @classmethod
     def uniform(cls, radius, rings: int, dtype=None) -> "RingOperator":
-        """`rings` rings of equal width covering `[0, radius]` [length]."""
+        """`rings` rings of equal width covering `[0, radius]` [length]. A traced
+        `radius` (inside `jit`, `grad`, `vmap`) scales the unit operator
+        (`scaled`); a concrete one must be finite and > 0."""
         rings = _validate.check_int("rings", rings, 1)
         if _validate.is_traced(radius):
-            raise TypeError("RingOperator.uniform needs a concrete radius, got a "
-                            "traced value")
+            unit = cls(np.linspace(0.0, 1.0, rings + 1), dtype=dtype)
+            return unit.scaled(jnp.asarray(radius, unit.edges.dtype))
         radius = float(radius)
         if not (np.isfinite(radius) and radius > 0):
             raise ValueError(f"radius must be finite and > 0, got {radius!r}")
         return cls(np.linspace(0.0, radius, rings + 1), dtype=dtype)
+
+    def scaled(self, factor) -> "RingOperator":
+        """This operator with every edge multiplied by `factor` > 0 (a scalar,
+        traced or not): the influences follow in closed form (module docs)."""
+        f = jnp.asarray(factor, self.edges.dtype)
+        return eqx.tree_at(
+            lambda op: (op.edges, op.areas, op.matrix, op.inverse), self,
+            (self.edges * f, self.areas * f**2, self.matrix * f, self.inverse / f**3))
 
     @property
     def rings(self) -> int:

@@ -224,7 +224,9 @@ def warn_unstable_steps(material, times):
             or _validate.is_traced(times) or _validate.is_traced(material)):
         return
     steps = np.unique(np.diff(np.asarray(times, np.float64)))
-    series = series()
+    # concrete even inside `jit` (whose trace would stage the series' arithmetic)
+    with jax.ensure_compile_time_eval():
+        series = series()
     radius, worst = max((constant_scheme_amplification(series, float(dt)), float(dt))
                         for dt in steps)
     if radius > 1.0:
@@ -243,9 +245,6 @@ def _ring_solver(scene: Scene, solver) -> RingPolonskyKeer | None:
     why = axisymmetric_support(scene)
     if why is not None:
         raise ValueError(f"jc.RingPolonskyKeer cannot solve this scene: {why}")
-    if _validate.is_traced(scene.grid.size):
-        raise ValueError("jc.RingPolonskyKeer lays its rings over the scene's grid: "
-                         "the grid's size must be concrete (not traced)")
     return solver
 
 

@@ -100,12 +100,12 @@ def ring_operator(scene: Scene, rings: int = DEFAULT_RINGS,
                   radius=None) -> RingOperator:
     """The `RingOperator` of `solve_axisymmetric` for `scene`: `rings` rings of equal
     width over `[0, radius]`, `radius` by default half the smaller side of the scene's
-    grid (the domain the grid solver would use); in the grid's dtype."""
+    grid (the domain the grid solver would use); in the grid's dtype. A traced radius
+    or grid size scales the operator of the unit radius (`RingOperator.uniform`)."""
     if radius is None:
-        if _validate.is_traced(scene.grid.size):
-            raise TypeError("solve_axisymmetric needs a concrete radius: give radius= "
-                            "when the scene's grid size is traced")
-        radius = float(np.min(np.asarray(scene.grid.size))) / 2
+        size = scene.grid.size
+        radius = (jnp.min(size) / 2 if _validate.is_traced(size)
+                  else float(np.min(np.asarray(size))) / 2)
     return RingOperator.uniform(radius, rings, dtype=scene.grid.size.dtype)
 
 

@@ -278,11 +278,12 @@ def test_fit_command_missing_file(tmp_path, capsys):
 
 def test_fit_command_on_the_relaxation_file_and_the_radius_scaling(tmp_path, capsys,
                                                                      monkeypatch):
-    """A tiny fit (8^2 grid, 1 arm, 4 + 8 points) of the relaxation file at two radii:
-    the JSON and the plot are written, the output states the radius note, and the
-    fitted relaxation time agrees between the radii while the moduli scale as
-    R^(-1/2) (the scene template scales the grid with sqrt(R * depth), so the two
-    discrete problems are similar: to 1e-3, the fits' own tolerance)."""
+    """A tiny fit (1 arm, 4 + 8 points; on the default ring model: 64 rings) of the
+    relaxation file at two radii: the JSON and the plot are written, the output
+    states the radius note and the rings, and the fitted relaxation time agrees
+    between the radii while the moduli scale as R^(-1/2) (the rings' radius scales
+    with sqrt(R * depth), so the two discrete problems are similar: to 1e-3, the
+    fits' own tolerance)."""
     import json
 
     pytest.importorskip("afmformats")
@@ -298,10 +299,13 @@ def test_fit_command_on_the_relaxation_file_and_the_radius_scaling(tmp_path, cap
         assert code in (0, 1)
         text = capsys.readouterr().out
         assert "absolute moduli scale as radius^(-1/2)" in text
+        assert "64 rings over" in text
         js = json.loads((d / "fmt-jpk-sr_cell1-0008_fit.json").read_text())
         assert js["mode"] == "relaxation" and js["fitted"] == "force"
         assert js["radius_m"] == radius and js["arms"] == 1
-        assert js["discretisation_rms"] > 0  # N: the 8^2 model against 16^2
+        assert js["solver"] == "rings" and js["rings"]["rings"] == 64
+        assert js["grid"] is None
+        assert js["discretisation_rms"] > 0  # N: 64 rings against 128
         # the model against the raw hold samples, in units of their white noise
         assert js["hold_residual_over_noise_raw"] > 1
         assert js["contact"] == "viscoelastic"
@@ -503,8 +507,9 @@ def test_creep_file_at_48_holds_within_the_noise_and_flags_only_the_approach(
     from jaxcontact._cli import main
 
     monkeypatch.setenv("JAXCONTACT_CACHE_DIR", str(tmp_path / "xla"))
-    code = main(["fit", CREEP, "--radius", "5e-6", "--n", "48", "--out",
-                 str(tmp_path)])
+    # --solver grid: the grid's own resolution (--n) is under test
+    code = main(["fit", CREEP, "--radius", "5e-6", "--solver", "grid", "--n", "48",
+                 "--out", str(tmp_path)])
     capsys.readouterr()
     js = json.loads(
         (tmp_path / "fmt-jpk-cc_pr14-polymergel-2021.06.30_fit.json").read_text())

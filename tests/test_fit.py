@@ -558,7 +558,7 @@ def test_check_grid_reports_the_discretisation_error():
     force = jc.solve(scene(16, truth), scheme="linear").normal_force
     data = jc.IndentationData(times, force=force, depth=depth)
     fit = jc.fit_prony(data, scene(8, jc.Elastic(3e3, 0.5)), 1,
-                       options=jc.FitOptions(check_grid=True))
+                       options=jc.FitOptions(check_grid=True, solver="grid"))
     fine = jc.solve(scene(16, fit.material), scheme="linear").normal_force
     expected = float(np.sqrt(np.mean((fit.curve - np.asarray(fine)) ** 2)))
     assert fit.discretisation is not None and expected > 0
@@ -833,7 +833,7 @@ _SHARDED_BATCH = textwrap.dedent(
     singles = [jc.fit_prony(d, template, 2, options=jc.FitOptions(optimiser="lm"),
                             _model=model)
                for d in data]
-    t._batch_matches_singles(fits, singles, same_steps=False)
+    t._batch_matches_singles(fits, singles, same_steps=False, atol=1e-7)
     print(json.dumps({{"devices": len(jax.devices()),
                       "g_inf": [float(f.material.g_inf) for f in fits]}}))
     """
@@ -843,7 +843,10 @@ _SHARDED_BATCH = textwrap.dedent(
 def test_batch_shards_over_two_cpu_devices():
     """Three curves padded to four and sharded over two forced host devices, in a
     fresh process (`devices=`: vmapped even on a CPU): each curve's own fit, as the
-    single fits in that process give it (parameters to 1e-8 in their logs)."""
+    single fits in that process give it (parameters to 1e-7 in their logs: the
+    sharded, vmapped LM is not the same arithmetic as the single one, and both stop
+    on the certificate's relative loss decrease, not at a bitwise fixed point;
+    measured 2.7e-8)."""
     code = _SHARDED_BATCH.format(tests=os.path.dirname(__file__))
     done = run_on_host_devices(code, 2)
     assert done.returncode == 0, done.stderr[-3000:]

@@ -167,6 +167,45 @@ def test_contact_shift_is_the_larger_of_the_methods_and_the_noise():
     assert uncertainty.contact_shift(c, RADIUS, 0.5, 1500.0)[0] == max(9, shift)
 
 
+def test_the_solver_setting_picks_rings_for_a_frictionless_axisymmetric_probe():
+    """`solver="auto"` takes the rings exactly where `solve_axisymmetric` can solve
+    the scene (an axisymmetric probe, no tangential solve, an isolated contact),
+    a forced `"rings"` elsewhere names why not, and bad settings are refused by
+    name. No solve."""
+    from jaxcontact.fitting.rings_model import choose_solver, ring_radius
+
+    t = np.linspace(0.0, 1.0, 5)
+
+    def scene(indenter, periodic=False):
+        g = jc.Grid((8, 8), 1e-5, periodic=periodic)
+        return jc.Scene(g, indenter, TRUTH, t, jc.Displacement(1e-6 * t))
+
+    sphere, cone = jc.Sphere(RADIUS), jc.Cone(0.35)
+    x = (np.arange(8) - 3.5) * 1.25e-6  # m: the sphere as a height array
+    flat = jc.Surface((x[:, None] ** 2 + x[None, :] ** 2) / (2 * RADIUS))
+    assert choose_solver("auto", scene(sphere), {}) == "rings"
+    assert choose_solver("auto", scene(cone), {}) == "rings"
+    assert choose_solver("grid", scene(sphere), {}) == "grid"
+    assert choose_solver("auto", scene(flat), {}) == "grid"
+    assert choose_solver("auto", scene(sphere, periodic=True), {}) == "grid"
+    assert choose_solver("auto", scene(sphere), {"max_rounds": 3}) == "grid"
+    with pytest.raises(ValueError, match="periodic"):
+        choose_solver("rings", scene(sphere, periodic=True), {})
+    with pytest.raises(ValueError, match="solver"):
+        jc.FitOptions(solver="fem")
+    with pytest.raises(ValueError, match="rings"):
+        jc.FitOptions(rings=2)
+    with pytest.raises(ValueError, match="solver"):
+        AFMFitSettings(radius=RADIUS, solver="fem")
+    # the rings' radius: 1.25 x where the profile reaches the deepest indentation,
+    # sqrt(2 R d) for the sphere's paraboloid, d tan(alpha) for the cone
+    d = 1e-6
+    assert ring_radius(scene(sphere)) == pytest.approx(1.25 * math.sqrt(2 * RADIUS * d),
+                                                       rel=1e-9)
+    assert ring_radius(scene(cone)) == pytest.approx(1.25 * d * math.tan(0.35),
+                                                     rel=1e-9)
+
+
 # ---- whole fits ----------------------------------------------------------------------
 
 
@@ -176,8 +215,10 @@ def test_a_curve_the_model_made_is_good_and_its_truth_is_covered():
     (`ok`), and every parameter within 3 reported (total) standard deviations of the
     truth, which includes the contact point's and the grid's share."""
     curve, template = synthetic_creep()
+    # solver="grid": the point is a fit on the very grid that made the curve (the
+    # rings' default would see the 8^2 grid's bias as a misfit).
     settings = AFMFitSettings(radius=RADIUS, arms=1, n=8, samples=(6, 16, 1),
-                              check_grid=False)
+                              check_grid=False, solver="grid")
     result = fit_afm_curve(curve, settings, template=template)
     r = result.report
     assert r["quality"]["verdict"] == "good", r["quality"]
@@ -202,7 +243,9 @@ def test_the_grid_bias_is_flagged_and_enters_the_uncertainty():
     curve, made = synthetic_creep(noise=2e-10, n=16)
     coarse = jc.Scene(jc.Grid(shape=(8, 8), size=made.grid.size), made.indenter,
                       made.material, made.times, made.normal)
-    settings = AFMFitSettings(radius=RADIUS, arms=1, n=8, samples=(6, 16, 1))
+    # solver="grid": the grid's own bias is under test (the rings have another).
+    settings = AFMFitSettings(radius=RADIUS, arms=1, n=8, samples=(6, 16, 1),
+                              solver="grid")
     r = fit_afm_curve(curve, settings, template=coarse).report
     grid = [f for f in r["flags"] if f.startswith("grid bias ")]
     assert len(grid) == 1 and "brings it below the noise" in grid[0], r["flags"]
@@ -212,6 +255,52 @@ def test_the_grid_bias_is_flagged_and_enters_the_uncertainty():
     assert g["std_log_components"]["grid"] > 0
     # the corrected refit is closer to 400 Pa than the 8^2 fit by the shift
     assert abs(math.log(g["value"] / 400.0)) <= g["std_log"]
+
+
+def test_the_rings_fit_a_fine_grids_curve_to_its_truth():
+    """The ring model (the default for a sphere) fitted to a curve the grid made at
+    24^2 (its bias against the rings ~0.1 nm, under the 2 nm noise) plus white
+    noise: good, nothing flagged, the rings' own bias (64 against 128 rings) below
+    the noise, and every parameter within 3 reported standard deviations of the
+    truth."""
+    curve, _ = synthetic_creep(n=24)
+    settings = AFMFitSettings(radius=RADIUS, arms=1, samples=(6, 16, 1))
+    r = fit_afm_curve(curve, settings).report
+    assert r["solver"] == "rings" and r["rings"]["rings"] == 64, r["rings"]
+    assert r["quality"]["verdict"] == "good", r["quality"]
+    assert r["flags"] == [] and r["converged"], r["flags"]
+    assert r["discretisation_over_noise"] < 1
+    assert r["uncertainty"]["components"]["grid"]["refined_rings"] == 128
+    p = r["parameters"]
+    for entry, truth in ((p["g_inf_Pa"], 400.0), (p["g_Pa"][0], 200.0),
+                         (p["tau_s"][0], 0.3)):
+        assert abs(math.log(entry["value"] / truth)) < 3 * entry["std_log"], entry
+
+
+def test_rings_and_grid_fits_agree_within_the_grids_discretisation():
+    """One curve (made at 16^2, 0.2 nm noise) fitted on an 8^2 grid and on rings: the
+    parameters differ by the grid's bias, whose effect the grid fit reports (its
+    `grid` component: the shift of the fit with the 8^2-vs-16^2 bias removed). The
+    8^2 fit's total discretisation shift is about 4/3 of that at second order (the
+    16^2 grid keeps a quarter), so within 2 x the component plus 3 x the noise's
+    std."""
+    curve, made = synthetic_creep(noise=2e-10, n=16)
+    coarse = jc.Scene(jc.Grid(shape=(8, 8), size=made.grid.size), made.indenter,
+                      made.material, made.times, made.normal)
+    base = dict(radius=RADIUS, arms=1, n=8, samples=(6, 16, 1))
+    grid = fit_afm_curve(curve, AFMFitSettings(solver="grid", **base),
+                         template=coarse).report
+    rings = fit_afm_curve(curve, AFMFitSettings(solver="rings",
+                                                analysis_uncertainty=False, **base),
+                          template=coarse).report
+    assert grid["solver"] == "grid" and rings["solver"] == "rings"
+    pg, pr = grid["parameters"], rings["parameters"]
+    for key in ("g_inf_Pa", "g_Pa", "tau_s"):
+        a = pg[key] if key == "g_inf_Pa" else pg[key][0]
+        b = pr[key] if key == "g_inf_Pa" else pr[key][0]
+        comps = a["std_log_components"]
+        shift = abs(math.log(a["value"] / b["value"]))
+        assert shift <= 2 * comps["grid"] + 3 * comps["optimiser"], (key, shift, comps)
 
 
 def test_fit_command_flags_the_relaxation_files_misfit(tmp_path, capsys, monkeypatch):

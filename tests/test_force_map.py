@@ -145,6 +145,51 @@ def test_a_curve_of_the_map_equals_fit_afm_curve(qi_map):
     assert report_numbers(mine) == report_numbers(direct)
 
 
+def test_the_curves_of_a_map_share_one_compilation(qi_map):
+    """Every curve of a map has the same bins, so after the first curve no program
+    compiles again: the ring model's operator is an argument, the raw residual is
+    solved at a power-of-two length, the optimisers' updates are module-level. Two
+    curves of the committed map (12-15 raw samples in contact each), through
+    `fit_cell` as `jc.fit_force_map` calls it, the compilations counted from JAX's
+    log (`jax_log_compiles`): none for the second curve."""
+    import logging
+
+    import afmformats
+    import jax
+
+    from jaxcontact._force_map import fit_cell
+
+    class Count(logging.Handler):
+        def __init__(self):
+            super().__init__(logging.DEBUG)
+            self.names = []
+
+        def emit(self, record):
+            text = record.getMessage()
+            if text.startswith("Finished XLA compilation of "):
+                self.names.append(text.split(" in ")[0][28:])
+
+    raw = afmformats.load_data(QI)
+    curves = [jc.read_afm(raw[k], contact="viscoelastic",
+                          segments=("approach", "hold")) for k in (0, 1)]
+    assert curves[0].time.size != curves[1].time.size  # different raw lengths
+    counter, logger = Count(), logging.getLogger("jax")
+    level = logger.level
+    logger.addHandler(counter)
+    logger.setLevel(logging.DEBUG)
+    try:
+        with jax.log_compiles(True):
+            first = fit_cell(curves[0], tiny())
+            compiled_first = list(counter.names)
+            second = fit_cell(curves[1], tiny())
+    finally:
+        logger.removeHandler(counter)
+        logger.setLevel(level)
+    assert first["report"] is not None and second["report"] is not None
+    assert first["report"]["solver"] == "rings"
+    assert counter.names[len(compiled_first):] == [], counter.names
+
+
 def test_fit_command_on_the_map_writes_a_row_a_curve(qi_map, tmp_path, capsys):
     """`jaxcontact fit MAP`: `STEM_map.csv` with a row a curve holding the numbers of
     `jc.fit_force_map` at the same settings (to 1e-12 relative: the same pipeline),

@@ -1,17 +1,17 @@
 """Gradients across the scene space against central differences.
 
 The cases are `benchmarks/gradient_matrix.py`'s: the default selection runs its
-`quick_slice()` (every axis value at least once: coupling, normal control and
-program, tangential program, material, slip law, time scheme, periodic grid,
-`jc.Surface`, the parameter, and `jit` / eager `grad` / forward-mode `jvp` / `vmap` /
-float32), the slow selection the rest of `default_slice()` (every value twice) and the
-whole matrix. Each runs in a process of its own or shares one with a few others: the
-quick slice's cases in `QUICK_CHUNKS` processes (one xdist group each: the test
-workers share the chunks out, and a chunk's cases share its process's start, imports
-and small programs), compiled as the rest of the default selection (its quick-compile
-flags, `tests/conftest.py`: a third of the compile time); every slow case alone,
-compiled as users compile (without those flags, whose code generation changes
-round-off), so the slow selection checks every case of the quick slice that way too
+`quick_slice()` (every axis value at least once: coupling, normal control and program,
+tangential program, material, slip law, time scheme, periodic grid, `jc.Surface`, the
+solver (grid or rings), the parameter, and `jit` / eager `grad` / forward-mode `jvp` /
+`vmap` / float32), the slow selection the rest of `default_slice()` (every value twice)
+and the whole matrix. Each runs in a process of its own or shares one with a few others:
+the quick slice's cases in `QUICK_CHUNKS` processes (one xdist group each: the test
+workers share the chunks out, and a chunk's cases share its process's start, imports and
+small programs), compiled as the rest of the default selection (its quick-compile flags,
+`tests/conftest.py`: a third of the compile time); every slow case alone, compiled as
+users compile (without those flags, whose code generation changes round-off), so the
+slow selection checks every case of the quick slice that way too
 (`test_whole_gradient_matrix`).
 
 Each gradient must be within 1e-5 (float64; 1e-2 float32) of the central difference of
@@ -108,7 +108,8 @@ def test_the_default_slice_covers_every_axis_value_twice():
     """The slice meets every value of every axis of the matrix at least twice."""
     slice_ = gm.default_slice()
     for field in ("coupling", "normal", "program", "tangential", "material", "slip",
-                  "scheme", "periodic", "surface", "parameter", "mode", "output"):
+                  "scheme", "periodic", "surface", "parameter", "mode", "output",
+                  "solver"):
         values = {getattr(c, field) for c in gm.all_cases()}
         for value in values:
             count = sum(getattr(c, field) == value for c in slice_)
@@ -122,7 +123,8 @@ def test_the_quick_slice_covers_every_axis_value_once():
     quick = gm.quick_slice()
     assert len(quick) == len(gm.QUICK)
     for field in ("coupling", "normal", "program", "tangential", "material", "slip",
-                  "scheme", "periodic", "surface", "parameter", "mode", "output"):
+                  "scheme", "periodic", "surface", "parameter", "mode", "output",
+                  "solver"):
         for value in {getattr(c, field) for c in gm.all_cases()}:
             assert any(getattr(c, field) == value for c in quick), (field, value)
 

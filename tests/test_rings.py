@@ -105,6 +105,20 @@ def test_ring_operator_is_the_mean_disc_displacement():
     assert np.linalg.eigvalsh(energy).min() > 0
 
 
+def test_traced_radius_scales_the_unit_operator():
+    """Inside `jit` the radius is traced: the operator is the unit radius's, scaled
+    (matrix x s, areas x s^2, inverse x s^-3), equal to the one built in NumPy at
+    that radius to round-off."""
+    built = RingOperator.uniform(2.5, 16)
+    traced = jax.jit(lambda r: RingOperator.uniform(r, 16))(2.5)
+    for name in ("edges", "areas", "matrix", "inverse"):
+        want = np.asarray(getattr(built, name))
+        # the inverse's small entries carry the inversion's round-off (~1e-13 of
+        # its largest): compared relative to the largest entry
+        np.testing.assert_allclose(getattr(traced, name), want, rtol=0,
+                                   atol=1e-12 * np.abs(want).max(), err_msg=name)
+
+
 def test_ring_operator_bad_input():
     with pytest.raises(ValueError, match="start at 0"):
         RingOperator(np.array([0.1, 0.2, 0.3]))
@@ -339,6 +353,12 @@ def test_jc_solve_runs_the_rings_when_asked():
         jc.solve(flat, solver=jc.RingPolonskyKeer())
     with pytest.raises(TypeError, match="lays its own rings"):
         jc.solve(scene, solver=jc.RingPolonskyKeer(), operator=jc.HalfSpace(grid))
+    # A grid size traced under `jit` (a scene built inside it): the same rings,
+    # scaled from the unit radius's.
+    traced = jax.jit(lambda side: jc.solve(
+        eqx.tree_at(lambda s: s.grid.size, scene, jnp.stack([side, side])),
+        solver=jc.RingPolonskyKeer()).approach)(1.2)
+    np.testing.assert_allclose(traced, rings.approach, rtol=1e-10)
 
 
 @pytest.mark.slow

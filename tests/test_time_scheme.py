@@ -12,6 +12,7 @@ J(dt) / J(0) = 2.5 is stable (10 x 1.5 / 9 = 1.67), 3.5 is not (2.78).
 
 import warnings
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -87,3 +88,25 @@ def test_linear_scheme_is_stable_at_the_same_step_and_silent():
     relaxed = float(jc.Hertz(R, W, G / 10, NU).approach)
     # 23 steps of 2.1 tau: fully relaxed, to the grid's discretisation of Hertz.
     np.testing.assert_allclose(approach[-1], relaxed, rtol=2e-2)
+
+
+def test_the_warning_is_given_inside_jit_too():
+    """A concrete material's scene solved inside `jit` (whose trace stages every
+    array operation): the check still evaluates the creep series at trace time and
+    warns at the unstable step (it once failed there, converting a traced series),
+    and says nothing at the stable one. Solved on rings: the check runs before any
+    solver."""
+    def solve_in_jit(ratio):
+        grid = jc.Grid((8, 8), 10 * A0)
+        scene = jc.Scene(grid, jc.Sphere(R), MATERIAL, _times(ratio, nt=6),
+                         jc.Force(W))
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", jc.TimeStepWarning)
+            approach = jax.jit(lambda: jc.solve(
+                scene, solver=jc.RingPolonskyKeer()).approach)()
+        assert bool(np.all(np.isfinite(np.asarray(approach))))
+        return [w for w in caught if issubclass(w.category, jc.TimeStepWarning)]
+
+    assert solve_in_jit(2.5) == []
+    (warned,) = solve_in_jit(3.5)
+    assert "amplification" in str(warned.message)

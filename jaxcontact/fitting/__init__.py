@@ -5,6 +5,8 @@
 - `options`: `FitOptions`, the optimiser's settings;
 - `parametrisation`: the fit's coordinates <-> `jc.Prony` (logs, bounds, fixed);
 - `model`: the contact model as a function of them, the compiled objective;
+- `rings_model`: the same model on rings (`solve_axisymmetric`) for a frictionless
+  axisymmetric probe, and the choice between rings and grid (`FitOptions.solver`);
 - `start`: the start from the data, `lee_radok_start`;
 - `lbfgs`, `lm`: the optimisers (Adam + L-BFGS from Python; Levenberg-Marquardt);
 - `certificate`: boundary probes, the convergence certificate, the covariance;

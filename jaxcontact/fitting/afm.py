@@ -10,8 +10,9 @@ The pipeline, shared by the command line and `jc.fit_force_map`:
    from the closed-form Lee & Radok start, relaxation times bounded to what the data
    resolve (`tau_bounds="auto"`: the raw sampling step to the data's duration);
 3. judge it (`fitting.quality`): the residual of the RAW samples of each fitted segment
-   against their white noise, the grid's bias, parameters at a bound, the contact
-   point's refinement;
+   against their white noise, the model's discretisation bias (at twice the rings,
+   or on a grid twice as fine), parameters at a bound, the contact point's
+   refinement;
 4. (unless `analysis_uncertainty=False`) refit with the contact point moved by its own
    uncertainty either way and with the grid's bias removed from the target, and add
    the parameter shifts to the optimiser's Gauss-Newton standard deviations
@@ -30,7 +31,14 @@ import numpy as np
 from .data import IndentationData
 from .fit import fit_prony
 from .options import FitOptions
-from .quality import assess, at_bounds, model_curve, raw_residual, youngs_moduli
+from .quality import (
+    assess,
+    at_bounds,
+    model_curve,
+    raw_residual,
+    ring_keywords,
+    youngs_moduli,
+)
 from .start import lee_radok_start
 from .uncertainty import analysis_uncertainty
 
@@ -54,7 +62,10 @@ class AFMFitSettings:
 
     - `radius`: probe (sphere) radius [m], > 0.
     - `arms`: number of Prony arms (1..8) or `"auto"` (1..`MAX_AUTO_ARMS`, by BIC).
-    - `n`: grid cells per side of the contact model (>= 4).
+    - `n`: grid cells per side of the contact model (>= 4), when it runs on the grid.
+    - `solver`: `"auto"` (default: the rings, `solve_axisymmetric`, for the sphere),
+      `"rings"` or `"grid"` (`jc.FitOptions.solver`).
+    - `rings`: rings of the ring model (>= 4; default 64).
     - `poisson`: Poisson's ratio, fixed, in (-1, 0.5].
     - `samples`: points after binning in the approach, hold and retract.
     - `segments`: the segments fitted; the approach always. Default approach and hold:
@@ -67,7 +78,8 @@ class AFMFitSettings:
     - `start`: `"lee-radok"` (the closed-form fit of loading and hold) or `"data"`
       (`jc.fit_prony`'s default start).
     - `steps`: bound on the Levenberg-Marquardt steps of each fit.
-    - `check_grid`: solve the fitted model on a grid twice as fine: the model's bias.
+    - `check_grid`: solve the fitted model at twice the resolution (twice the rings,
+      or a grid twice as fine): the model's discretisation bias.
     - `analysis_uncertainty`: add the contact point's and the grid's parameter shifts
       to the reported uncertainty (two or three more fits from the result).
     """
@@ -83,6 +95,8 @@ class AFMFitSettings:
     steps: int = 200
     check_grid: bool = True
     analysis_uncertainty: bool = True
+    solver: str = "auto"
+    rings: int = 64
 
     def __post_init__(self):
         r = self.radius
@@ -114,6 +128,12 @@ class AFMFitSettings:
             raise ValueError(f"start must be 'lee-radok' or 'data', got {self.start!r}")
         if not (isinstance(self.steps, int) and self.steps >= 1):
             raise ValueError(f"steps must be an integer >= 1, got {self.steps!r}")
+        if self.solver not in ("auto", "rings", "grid"):
+            raise ValueError(f"solver must be 'auto', 'rings' or 'grid', got "
+                             f"{self.solver!r}")
+        if not (isinstance(self.rings, int) and not isinstance(self.rings, bool)
+                and self.rings >= 4):
+            raise ValueError(f"rings must be an integer >= 4, got {self.rings!r}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -209,7 +229,8 @@ def fit_afm_curve(curve, settings: AFMFitSettings, *, template=None) -> AFMFit:
     fit = fits[best][0]
     bias = problem.grid_bias(fit) if settings.check_grid else None
     disc = None if bias is None else float(np.sqrt(np.mean(bias**2)))
-    _, raw_res, raw_seg = raw_residual(fit.material, fit.kind, curve, problem.template)
+    _, raw_res, raw_seg = raw_residual(fit.material, fit.kind, curve, problem.template,
+                                       **ring_keywords(fit))
     hertz = apparent_hertz(curve, settings.radius, settings.poisson)
     uncertainty = (analysis_uncertainty(problem, fit, curve, bias, hertz["E_Pa"])
                    if settings.analysis_uncertainty else None)
@@ -219,7 +240,11 @@ def fit_afm_curve(curve, settings: AFMFitSettings, *, template=None) -> AFMFit:
         "radius_warning": radius_note, "poisson": settings.poisson,
         "settings": _settings_json(settings),
         "tau_bounds_s": list(problem.tau_bounds) if problem.tau_bounds else None,
-        "grid": [settings.n, settings.n], "arms": best, "samples": int(
+        "solver": fit.solver,
+        "grid": [settings.n, settings.n] if fit.solver == "grid" else None,
+        "rings": None if fit.solver == "grid" else {
+            "rings": fit.rings, "radius_m": fit.ring_radius},
+        "arms": best, "samples": int(
             problem.times.size),
         "converged": bool(fit.converged), "message": fit.message,
         "information_criteria": {
@@ -304,13 +329,16 @@ class _Problem:
                 jnp.asarray(init.tau), lo * 1.05, hi / 1.05))
         return fit_prony(data, self.template, arms, weights=weights, init=init,
                          bounds=bounds,
-                         options=FitOptions(lm_steps=self.settings.steps))
+                         options=FitOptions(lm_steps=self.settings.steps,
+                                            solver=self.settings.solver,
+                                            rings=self.settings.rings))
 
     def grid_bias(self, fit):
-        """`(nt,)` the fitted model's curve on this grid minus on a grid twice as
-        fine (same width) [data units]: the bias of the model's discretisation."""
+        """`(nt,)` the fitted model's curve at the fit's resolution minus at twice it
+        (twice the rings over the same radius, or twice the cells per side, same
+        width) [data units]: the bias of the model's discretisation."""
         drive = dict(times=self.times, force=self.force, depth=self.depth,
-                     kind=fit.kind)
+                     kind=fit.kind, **ring_keywords(fit))
         return (model_curve(fit.material, self.template, **drive)
                 - model_curve(fit.material, self.template, refine=2, **drive))
 

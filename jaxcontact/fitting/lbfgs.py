@@ -19,6 +19,16 @@ from .model import Evaluator
 
 _MAX_STEP = 1.0  # largest change of a log-parameter in one L-BFGS step
 
+# Module-level compiled updates (the learning rate an argument): one compilation
+# serves every fit of a parameter count, not one per fit.
+_LBFGS = optax.scale_by_lbfgs(memory_size=20)
+_lbfgs_update = jax.jit(_LBFGS.update)
+
+
+@jax.jit
+def _adam_update(grad, state, z, learning_rate):
+    return optax.adam(learning_rate).update(grad, state, z)
+
 
 class _Whitened:
     """The optimisers' coordinates `z`: `theta = theta_0 + M z`, `M = H^(-1/2)` for
@@ -71,13 +81,12 @@ def _adam(ev: Evaluator, w: _Whitened, theta, steps, learning_rate, history, ini
         lr = 0.1 * math.sqrt(2 * value) if w.precondition else 0.02
     else:
         lr = learning_rate
-    adam = optax.adam(lr)
-    adam_update = jax.jit(adam.update)
-    state = adam.init(z)
+    state = optax.adam(lr).init(z)
+    lr = jnp.asarray(lr, z.dtype)
     best = (value, z, grad)
     taken = 0
     for _ in range(steps):
-        updates, state = adam_update(w.z_grad(grad), state, z)
+        updates, state = _adam_update(w.z_grad(grad), state, z, lr)
         trial = z + updates
         value_t, grad_t, _, _ = ev.loss(w.theta(trial))
         if not np.isfinite(float(value_t)):
@@ -109,8 +118,7 @@ def _lbfgs(ev: Evaluator, w: _Whitened, z, value, grad, steps, gtol, history):
     taken)`; appends the losses to `history`. Far from the optimum `H` changes: when
     L-BFGS has cut the loss 100-fold since `M` was built, `M` is rebuilt there and
     L-BFGS restarts (at most 4 times)."""
-    lbfgs = optax.scale_by_lbfgs(memory_size=20)
-    lbfgs_update = jax.jit(lbfgs.update)
+    lbfgs, lbfgs_update = _LBFGS, _lbfgs_update
     state = lbfgs.init(z)
     g_theta = ravel_pytree(grad)[0]
     converged, message = (

@@ -42,6 +42,16 @@ class SceneModel:
         curve = sol.normal_force if self.kind == "force" else sol.approach
         return curve, sol.converged
 
+    @staticmethod
+    def refined(ctx, factor: int = 2):
+        """`ctx` on a grid of `factor` times the cells per side, same size."""
+        scene, _ = ctx
+        g = scene.grid
+        fine = eqx.tree_at(lambda sc: sc.grid, scene, type(g)(
+            shape=tuple(factor * k for k in g.shape), size=g.size,
+            periodic=g.periodic))
+        return fine, operator_for(fine, traced_directions(fine))
+
 
 def scene_model(scene, kind: str, solve_options: dict | None):
     """`(model, ctx)`: the contact model of `scene` with `solve_options` (scheme

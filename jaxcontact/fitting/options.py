@@ -37,7 +37,8 @@ class FitOptions:
           relative residual, Jacobian by forward mode, one compiled solve; at most
           `lm_steps` steps). Needs optimistix (`pip install "jaxcontact[fit]"`).
         - `"auto"`: L-BFGS, then LM from its result when that is not certified a
-          minimum (see `jc.PronyFit.converged`) and optimistix is installed.
+          minimum (see `jc.PronyFit.converged`) and optimistix is installed; on
+          rings (`solver`), LM alone (its forward-mode Jacobian is cheap there).
       Measured (float64, quiet 2-core CPU): from the default start on the PMMA step,
       64^2 x 40, L-BFGS 6.8 s compiled (13.7 s with compilation), LM 7.1 s (18.7 s),
       13 steps: its Jacobian costs one tangent solve per parameter per step (33.1 s
@@ -65,9 +66,18 @@ class FitOptions:
       (samples joined by ramps; stable at any step); `"constant"` treats every sample
       as a step, and a fit that ends with a material for which the data's steps are
       unstable under it warns (`jc.TimeStepWarning`). Held as a copy.
-    - `check_grid` (default `False`): also solve the fitted model on a grid twice as
-      fine (one more compilation and a solve 4x as large) and report the difference
-      (`jc.PronyFit.discretisation`).
+    - `check_grid` (default `False`): also solve the fitted model at twice the
+      resolution (a grid twice as fine, or twice the rings; one more compilation)
+      and report the difference (`jc.PronyFit.discretisation`).
+    - `solver`: the contact model's discretisation. `"auto"` (default) solves a
+      frictionless axisymmetric probe (`jc.Sphere`, `jc.Cone`, ...) on `rings`
+      rings (`solve_axisymmetric`: a 1-D problem, at the grid's accuracy in a
+      small fraction of its time, `benchmarks/rings.py`) and anything else on the
+      template's grid; `"grid"` always solves on the template's grid; `"rings"`
+      forces the rings (a `ValueError` naming why where they cannot solve the
+      scene). `jc.PronyFit.solver` says which ran.
+    - `rings` (default 64, >= 4): rings of equal width over `RING_MARGIN` (1.25)
+      times the radius where the probe's profile reaches the deepest indentation.
     """
 
     optimiser: str = "auto"
@@ -79,6 +89,8 @@ class FitOptions:
     lm_steps: int = 100
     solve_options: dict | None = None
     check_grid: bool = False
+    solver: str = "auto"
+    rings: int = 64
 
     def __post_init__(self):
         def put(name, value):
@@ -103,6 +115,10 @@ class FitOptions:
             raise ValueError(f"gtol must be None or a number >= 0, got {gtol!r}")
         put("precondition", _check_bool("precondition", self.precondition))
         put("check_grid", _check_bool("check_grid", self.check_grid))
+        if self.solver not in ("auto", "rings", "grid"):
+            raise ValueError(f"solver must be 'auto', 'rings' or 'grid', got "
+                             f"{self.solver!r}")
+        put("rings", check_int("rings", self.rings, 4))
         if self.solve_options is not None:
             if not isinstance(self.solve_options, Mapping):
                 raise TypeError(f"solve_options must be a dict of jc.solve keywords "

@@ -33,14 +33,37 @@ _AT_BOUND = 0.01  # a relaxation time within 1 % (in log) of a bound sits on it
 DEEP = 1.0  # depth / radius above which the caveat on the small-strain model shows
 
 
-def model_curve(material, template, *, times, force, depth, kind, refine=1):
+def ring_keywords(fit) -> dict:
+    """`model_curve`'s `rings`, `radius` of a `jc.PronyFit` (empty on the grid)."""
+    if fit.solver != "rings":
+        return {}
+    return {"rings": int(fit.rings), "radius": float(fit.ring_radius)}
+
+
+def model_curve(material, template, *, times, force, depth, kind, refine=1,
+                rings=None, radius=None):
     """`(nt,)` the contact model of `material` on `template`'s grid (`refine` times
-    the cells per side, same width) driven by the measured `force` (`kind="depth"`:
-    returns the depth [m]) or `depth` (`kind="force"`: returns the force [N]) at
-    `times` [s], from an unloaded start, scheme `"linear"` as in the fit."""
+    the cells per side, same width), or on `rings` rings over `[0, radius]` [m]
+    (`refine` times the rings, `solve_axisymmetric`), driven by the measured `force`
+    (`kind="depth"`: returns the depth [m]) or `depth` (`kind="force"`: returns the
+    force [N]) at `times` [s], from an unloaded start, scheme `"linear"` as in the
+    fit."""
     import equinox as eqx
     import jax.numpy as jnp
 
+    if rings is not None:
+        from .._ring_operator import RingOperator
+        from .._solve_rings import solve_axisymmetric
+
+        normal = (Force(jnp.asarray(force)) if kind == "depth"
+                  else Displacement(jnp.asarray(depth)))
+        scene = eqx.tree_at(lambda s: (s.material, s.times, s.normal), template,
+                            (material, jnp.asarray(times), normal))
+        operator = RingOperator.uniform(radius, refine * rings,
+                                        dtype=template.grid.size.dtype)
+        sol = solve_axisymmetric(scene, operator=operator, scheme="linear",
+                                 throw=False)
+        return np.asarray(sol.approach if kind == "depth" else sol.normal_force)
     grid = template.grid
     if refine != 1:
         grid = type(grid)(shape=tuple(refine * k for k in grid.shape), size=grid.size,
@@ -53,11 +76,21 @@ def model_curve(material, template, *, times, force, depth, kind, refine=1):
     return np.asarray(sol.approach if kind == "depth" else sol.normal_force)
 
 
-def raw_residual(material, kind, curve, template, *, refine=1, max_samples=600):
+def padded_length(n: int) -> int:
+    """The length a raw curve of `n` samples is solved at: the next power of two (at
+    least 64), so that the curves of a map, whose sample counts after the contact
+    differ, share a few compiled programs (one, mostly) instead of one each."""
+    return max(64, 1 << (int(n) - 1).bit_length())
+
+
+def raw_residual(material, kind, curve, template, *, refine=1, max_samples=600,
+                 rings=None, radius=None):
     """`(time, residual, segment)` of the model of `material` against the RAW samples
     of an `AFMCurve` (each segment thinned evenly to at most `max_samples`): one
-    forward solve on `template`'s grid (`refine` x the cells per side) from an
-    unloaded start at `t = 0`, fitting `kind` ("depth" or "force").
+    forward solve on `template`'s grid (`refine` x the cells per side; or on `rings`
+    rings over `radius`, `model_curve`) from an unloaded start at `t = 0`, fitting
+    `kind` ("depth" or "force"). The solve runs on `padded_length` samples (the
+    last ones held after the end: the model is causal, the samples are unchanged).
     `residual` = model - data [N or m], every sample after the contact's."""
     keep = np.zeros(curve.time.shape, bool)
     for code in (0, 1, 2):
@@ -69,8 +102,12 @@ def raw_residual(material, kind, curve, template, *, refine=1, max_samples=600):
         f[0], d[0] = 0.0, 0.0
     else:
         t, f, d, s = np.r_[0.0, t], np.r_[0.0, f], np.r_[0.0, d], np.r_[0, s]
-    model = model_curve(material, template, times=t, force=f, depth=d, kind=kind,
-                        refine=refine)
+    n, pad = t.size, padded_length(t.size) - t.size
+    step = float(np.median(np.diff(t))) if t.size > 1 else 1.0
+    tp = np.r_[t, t[-1] + step * np.arange(1, pad + 1)]
+    fp, dp = np.r_[f, np.full(pad, f[-1])], np.r_[d, np.full(pad, d[-1])]
+    model = model_curve(material, template, times=tp, force=fp, depth=dp, kind=kind,
+                        refine=refine, rings=rings, radius=radius)[:n]
     # The contact sample itself is no measurement (force and depth 0 by definition;
     # under load control the model's first approach is the gap of the node nearest
     # the apex): it is left out.
@@ -103,6 +140,13 @@ def finer_grid(n, bias_over_noise):
     (measured on the creep file: `n^-2.7` from 16^2 to 32^2, `n^-1.7` from 32^2 to
     64^2; the slower rate, rounded down, errs towards a finer grid)."""
     return int(8 * math.ceil(n * bias_over_noise ** (1 / 1.5) / 8))
+
+
+def finer_rings(n, bias_over_noise):
+    """The ring count (a multiple of 8) at which a ring bias of `bias_over_noise` x
+    the noise on `n` rings falls below the noise: the rings converge at second order
+    (`benchmarks/notes/rings.md`: orders 1.97-2.00 from 32 to 512 rings)."""
+    return int(8 * math.ceil(n * bias_over_noise ** 0.5 / 8))
 
 
 def relaxation_modulus(material, t):
@@ -224,7 +268,12 @@ def assess(fit, curve, problem, raw_res, raw_seg, disc, radius_note, uncertainty
             + f" (limit {QUALITY_LIMIT:g}); " + misfit_diagnosis(worse, floor))
     for text in at_bounds(fit.material, problem.tau_bounds):
         flags.append(f"parameter at a bound: {text}")
-    if disc is not None and disc > noise:
+    if disc is not None and disc > noise and fit.solver == "rings":
+        flags.append(f"ring discretisation bias {disc / noise:.3g} x the noise "
+                     f"({fit.rings} rings): about --rings "
+                     f"{finer_rings(fit.rings, disc / noise)} brings it below the "
+                     "noise")
+    elif disc is not None and disc > noise:
         flags.append(f"grid bias {disc / noise:.3g} x the noise (grid "
                      f"{problem.settings.n}^2): about --n "
                      f"{finer_grid(problem.settings.n, disc / noise)} brings it "

@@ -46,7 +46,11 @@ class PronyFit(eqx.Module):
     - `discretisation`: with `check_grid=True`, the RMS difference between the
       fitted model's curve on the fit's grid and on a grid twice as fine (same
       width) [units of the data]: the model's own discretisation error, a bias the
-      fit cannot remove; compare it with `noise`. `None` otherwise.
+      fit cannot remove; compare it with `noise`. `None` otherwise. On rings: the
+      difference to twice the rings over the same radius.
+    - `solver`: the contact model that ran, `"rings"` (`solve_axisymmetric`) or
+      `"grid"` (`jc.solve` on the template's grid); `rings`, `ring_radius`: its
+      ring count and outer radius [length] (`None` on the grid).
     """
 
     material: Prony
@@ -72,6 +76,9 @@ class PronyFit(eqx.Module):
     gradient: dict
     noise: float
     discretisation: float | None = None
+    solver: str = "grid"
+    rings: int | None = None
+    ring_radius: float | None = None
 
     def to_xarray(self, *, units=None, attrs=None):
         """This fit as a labelled `xarray.Dataset`.

@@ -35,18 +35,20 @@ _PREFIT_CLIP = 30.0  # |log(value / reference)| the prefit can reach
 
 
 @functools.partial(jax.jit, static_argnums=0)
-def _prefit_loss(kind, theta, lag, apparent, g_ref, t_ref):
+def _prefit_loss(kind, theta, lag, apparent, weight, g_ref, t_ref):
     # Clipped exponents and no constructor checks: the line search may probe wild
-    # points, which must come back as large losses, not errors.
+    # points, which must come back as large losses, not errors. `weight`: 1 on the
+    # samples used, 0 on the padding (one compiled prefit for every curve of a
+    # length, whatever number of samples it uses).
     clip = _PREFIT_CLIP
     g_inf, g, tau = (c * jnp.exp(jnp.clip(theta[k], -clip, clip)) for c, k in (
         (g_ref, "g_inf"), (g_ref, "g"), (t_ref, "tau")))
     if kind == "force":  # a held indentation: G_app(t) = G(t - t_0)
         relaxation = g_inf + jnp.sum(g[None, :] * jnp.exp(-lag[:, None] / tau[None, :]),
                                      axis=1)
-        return jnp.mean((relaxation / apparent - 1) ** 2)
+        return jnp.sum(weight * (relaxation / apparent - 1) ** 2) / jnp.sum(weight)
     creep = retardation_series(g_inf, g, tau)(lag)  # held load: G_app = 1 / J
-    return jnp.mean((creep * apparent - 1) ** 2)
+    return jnp.sum(weight * (creep * apparent - 1) ** 2) / jnp.sum(weight)
 
 
 _PREFIT_OPT = optax.lbfgs()
@@ -63,14 +65,19 @@ def _prefit_step(kind, theta, state, *args):
     return optax.apply_updates(theta, updates), state, value
 
 
-def _prefit(kind, lag, apparent, g_inf, arms, t_init, g_ref, t_ref, steps=200):
+def _prefit(kind, lag, apparent, g_inf, arms, t_init, g_ref, t_ref, steps=200,
+            length=None):
     """Least-squares Prony fit of `G(lag)` (or `1 / J(lag)` under load control) to
     the apparent moduli: a cheap curve fit, no contact model; optax L-BFGS with its
-    zoom line search, bounded."""
+    zoom line search, bounded. `length`: the samples padded to it (weight 0)."""
     theta = {"g_inf": jnp.log(jnp.asarray(g_inf / g_ref)),
              "g": jnp.log(jnp.full(t_init.shape, arms / t_init.shape[0]) / g_ref),
              "tau": jnp.log(jnp.asarray(t_init) / t_ref)}
-    args = (jnp.asarray(lag), jnp.asarray(apparent), g_ref, t_ref)
+    pad = max(0, (length or 0) - lag.shape[0])
+    weight = np.r_[np.ones(lag.shape[0]), np.zeros(pad)]
+    args = (jnp.asarray(np.r_[lag, np.zeros(pad)]),
+            jnp.asarray(np.r_[apparent, np.ones(pad)]), jnp.asarray(weight),
+            g_ref, t_ref)
     opt = _PREFIT_OPT
     step = functools.partial(_prefit_step, kind)
     state = opt.init(theta)
@@ -151,7 +158,7 @@ def initial_guess(ev: Evaluator, refs, fit_poisson, kind, times, target, n, t_in
     if apparent.shape[0] > 1 + 2 * n:
         lag = times[use] - times[np.argmax(use)]
         refined = _prefit(kind, lag, apparent, g_inf, arms, t_init, g0,
-                          float(times[-1] - times[0]))
+                          float(times[-1] - times[0]), length=times.shape[0])
     if refined is None:
         return Prony(g_inf, np.full(n, arms / n), t_init, poisson)
     return Prony(*refined, poisson)

@@ -120,7 +120,10 @@ def analysis_uncertainty(problem, fit, curve, bias, e_apparent):
         _note(refit, "grid-bias-corrected target", flags)
         refits["grid"] = [refit.material]
         details["grid"] = {"bias_rms": float(np.sqrt(np.mean(bias**2))),
-                           "refined": [2 * k for k in problem.template.grid.shape]}
+                           "refined": ([2 * k for k in problem.template.grid.shape]
+                                       if fit.solver == "grid" else None),
+                           "refined_rings": (2 * fit.rings if fit.solver == "rings"
+                                             else None)}
     return AnalysisUncertainty(fit.material, refits, details, flags)
 
 
