@@ -669,14 +669,15 @@ def test_a_prefit_step_far_beyond_its_clip_gives_a_valid_start(monkeypatch):
     clips the logs to +-30: beyond that its gradient is zero and a line search can
     leave a log time far out (on an H200 one went to exp(-800) = 0 s, and
     `fit_prony` raised "tau must be finite and > 0" before its first step). Here the
-    step is made to do that: the start holds the clipped value, a positive time."""
-    real_step = _start._prefit_step
+    run is made to go there at once: the start holds the clipped value, a positive
+    time."""
+    real_run = _start._prefit_run
 
-    def wild(kind, theta, state, *args):
-        new, state, value = real_step(kind, theta, state, *args)
-        return {**new, "tau": new["tau"].at[-1].set(-800.0)}, state, value
+    def wild(kind, steps, theta, *args):
+        far = {**theta, "tau": theta["tau"].at[-1].set(-800.0)}
+        return real_run(kind, steps, far, *args)
 
-    monkeypatch.setattr(_start, "_prefit_step", wild)
+    monkeypatch.setattr(_start, "_prefit_run", wild)
     lag = np.linspace(0.0, 10.0, 40)
     apparent = 1e6 * (1 + 2 * np.exp(-lag / 0.7))
     refined = _start._prefit("force", lag, apparent, 1e6, 2e6, np.array([0.3, 3.0]),

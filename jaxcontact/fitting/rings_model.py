@@ -38,6 +38,9 @@ RING_MARGIN = 1.25
 
 SOLVERS = ("auto", "rings", "grid")
 
+# radii evaluated at once by each narrowing of `intersection_radius`'s bracket
+_SAMPLES = 1025
+
 # `jc.solve` keywords the ring model honours (`rtol`, `max_steps`: its step solver's);
 # `adjoint` is dropped (the ring solve's derivatives are implicit in both modes).
 _RING_KEYWORDS = ("scheme", "history", "rtol", "max_steps", "adjoint")
@@ -88,23 +91,28 @@ def choose_solver(solver: str, scene: Scene, solve_options: dict) -> str:
 
 def intersection_radius(indenter, depth: float, start: float) -> float:
     """The radius [length] where `indenter.profile` reaches `depth` [length] > 0
-    (bisection; the profile increases with r), searched from `start` [length] > 0."""
+    (the profile increases with r), searched from `start` [length] > 0: the bracket
+    doubled until the profile is deeper, then narrowed by evaluating the profile on
+    `_SAMPLES` radii at once (a few calls of the profile, not one per bisection step),
+    to a relative width of 1e-9."""
     def h(r):
-        return float(np.asarray(indenter.profile(jnp.asarray(r, jnp.float64))))
+        r = np.atleast_1d(np.asarray(r, np.float64))
+        return np.asarray(indenter.profile(jnp.asarray(r, jnp.float64)), np.float64)
 
     hi = start
     for _ in range(60):  # double until the profile is deeper than `depth`
-        if h(hi) >= depth:
+        if h(hi)[0] >= depth:
             break
         hi *= 2.0
     else:
         raise ValueError(f"the probe's profile does not reach the depth {depth!r} "
                          f"within {hi!r}")
     lo = 0.0
-    for _ in range(60):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if h(mid) < depth else (lo, mid)
-    return hi
+    while hi - lo > 1e-9 * hi:
+        radii = np.linspace(lo, hi, _SAMPLES)
+        k = int(np.searchsorted(h(radii) >= depth, True))  # first radius as deep
+        lo, hi = radii[max(k - 1, 0)], radii[k]
+    return float(hi)
 
 
 def max_depth(scene: Scene, depth=None) -> float:

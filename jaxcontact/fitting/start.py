@@ -54,15 +54,31 @@ def _prefit_loss(kind, theta, lag, apparent, weight, g_ref, t_ref):
 _PREFIT_OPT = optax.lbfgs()
 
 
-@functools.partial(jax.jit, static_argnums=0)
-def _prefit_step(kind, theta, state, *args):
+@functools.partial(jax.jit, static_argnums=(0, 1))
+def _prefit_run(kind, steps, theta, *args):
+    """`steps` L-BFGS steps from `theta` in one compiled loop, stopped before the
+    first step that leaves a non-finite parameter (`theta` is then the last finite
+    one)."""
     def fn(th):
         return _prefit_loss(kind, th, *args)
 
-    value, grad = optax.value_and_grad_from_state(fn)(theta, state=state)
-    updates, state = _PREFIT_OPT.update(grad, state, theta, value=value, grad=grad,
-                                        value_fn=fn)
-    return optax.apply_updates(theta, updates), state, value
+    def keep_going(carry):
+        i, _, _, stopped = carry
+        return (i < steps) & ~stopped
+
+    def step(carry):
+        i, theta, state, _ = carry
+        value, grad = optax.value_and_grad_from_state(fn)(theta, state=state)
+        updates, state = _PREFIT_OPT.update(grad, state, theta, value=value,
+                                            grad=grad, value_fn=fn)
+        new = optax.apply_updates(theta, updates)
+        finite = jnp.all(jnp.stack([jnp.all(jnp.isfinite(x))
+                                    for x in jax.tree.leaves(new)]))
+        theta = jax.tree.map(lambda a, b: jnp.where(finite, a, b), new, theta)
+        return i + 1, theta, state, ~finite
+
+    carry = (jnp.asarray(0), theta, _PREFIT_OPT.init(theta), jnp.asarray(False))
+    return jax.lax.while_loop(keep_going, step, carry)[1]
 
 
 def _prefit(kind, lag, apparent, g_inf, arms, t_init, g_ref, t_ref, steps=200,
@@ -78,15 +94,8 @@ def _prefit(kind, lag, apparent, g_inf, arms, t_init, g_ref, t_ref, steps=200,
     args = (jnp.asarray(np.r_[lag, np.zeros(pad)]),
             jnp.asarray(np.r_[apparent, np.ones(pad)]), jnp.asarray(weight),
             g_ref, t_ref)
-    opt = _PREFIT_OPT
-    step = functools.partial(_prefit_step, kind)
-    state = opt.init(theta)
     start = float(_prefit_loss(kind, theta, *args))
-    for _ in range(steps):
-        new, state, value = step(theta, state, *args)
-        if not all(bool(jnp.all(jnp.isfinite(x))) for x in jax.tree.leaves(new)):
-            break
-        theta = new
+    theta = _prefit_run(kind, steps, theta, *args)
     if not float(_prefit_loss(kind, theta, *args)) < start:
         return None
     # The values the loss saw: beyond the clip its gradient is zero and a line search
