@@ -122,6 +122,12 @@ def ring_fit(r):
     return f"{rings:.2f} s compiled on 64 rings ({grid:.1f} s on 64^2)"
 
 
+def paper(r):
+    c = r["summary"]
+    return (f"{c['holds']} hold, {c['partly']} partly, {c['differs']} differ of "
+            f"{c['verdicts']}; {c['seconds']:.0f} s")
+
+
 def force_map(r):
     return f"{r['summary']['warm_mean_s']:.1f} s a curve (warm)"
 
@@ -155,6 +161,7 @@ ENTRIES = [
     ("rings/intel_xeon.json", "Prony fit of the PMMA step on rings, 40 samples",
      ring_fit),
     ("force_map/intel_xeon.json", "`jc.fit_force_map`, 4-curve QI map", force_map),
+    ("paper/intel_xeon.json", "the paper's claims at 256^2 (`paper.py`)", paper),
 ]
 
 

@@ -5,21 +5,30 @@
 # Viscoelasticity on the Partial Slip Solution*: every numerical study of sections 3
 # and 4 (Tables 1-2, Figs. 4-27), from `jc.presets`, in the paper's order. Each section
 # states the paper's claim in one sentence, computes the quantity that tests it, and
-# prints a verdict line, `holds (our number)` or `differs (ours vs the paper's)`. The
-# verdicts are DECIDED BY THE NUMBERS computed here, so they hold for the size you run;
-# every `differs` comes with a cause demonstrated by a computation in its section. The
-# last cell collects every verdict in a table and writes it as JSON
-# (`JAXCONTACT_NOTEBOOK_VERDICTS=path`, or `paper_verdicts.json` under
-# `JAXCONTACT_NOTEBOOK_OUT`).
+# records a verdict: first the CRITERION (what counts as `holds`, with its threshold
+# and the grid, step or step-to-step spread it is compared with), then our number,
+# then the verdict, `holds`, `partly` (part of the claim holds, part does not or is
+# below resolution) or `differs`. The verdicts are DECIDED BY THE NUMBERS computed
+# here, so they hold for the size you run; every `partly` and `differs` comes with a
+# cause demonstrated by a computation in its section.
+#
+# One command runs it and writes the results file, the figures and the pages:
+# `python benchmarks/paper.py --size paper` (`benchmarks/README.md`). Run alone, the
+# notebook writes its verdicts as JSON to `JAXCONTACT_NOTEBOOK_VERDICTS=path` (or
+# `paper_verdicts.json` under `JAXCONTACT_NOTEBOOK_OUT`).
 #
 # Moduli: the paper lists twice the shear modulus; the presets convert (DESIGN.md 1).
 # Slip law: the paper's total-slip form (its Eq. 16), as in the presets.
 #
-# `JAXCONTACT_NOTEBOOK_SIZE`: `ci` (16 x 16 cells and 9 time points: a smoke test whose
-# numbers mean little; tests/test_paper_claims.py checks the verdicts that this size can
-# decide), `small` (default, 64 x 64, the paper's time steps) or `paper` (256 x 256).
-# `JAXCONTACT_NOTEBOOK_OUT=DIR` also saves the figures as PNG. The checks below
-# (`check`: convergence, load balance, Coulomb, Lee & Radok) are asserted at every size.
+# `JAXCONTACT_NOTEBOOK_SIZE`: `ci` (16 x 16 cells and 9 time points: runs every study's
+# code at the least cost, so its grid studies reuse the one grid and its step studies
+# run two steps, 9 and 17 points, the added variants one; its numbers mean little),
+# `small` (default, 64 x 64, the paper's time steps) or `paper` (256 x 256). The grid
+# and step studies that settle a verdict (Figs. 12, 20b, 24) add coarser grids
+# (`GRIDS`) and run the dearest variants on those (`NS`, `NS24`, `NSX`: 128^2 and 64^2
+# at paper size, to keep its run within 20 minutes on 2 CPU cores). The checks below
+# (`check`: convergence, load balance, Coulomb, Lee & Radok) are asserted at every
+# size.
 #
 # Compilation dominates at small sizes: JAX compiles one solver program per kind of
 # scene (material type, which loads are forces or displacements, coupling, grid shape,
@@ -29,8 +38,10 @@
 
 # %%
 import json
+import math
 import os
 import time
+import warnings
 
 import jax
 
@@ -46,8 +57,15 @@ import jaxcontact as jc  # noqa: E402
 
 P = jc.presets
 SIZE = os.environ.get("JAXCONTACT_NOTEBOOK_SIZE", "small")
+if SIZE not in ("ci", "small", "paper"):
+    raise ValueError(f"JAXCONTACT_NOTEBOOK_SIZE={SIZE!r}: use ci, small or paper")
 N = {"ci": 16, "small": 64, "paper": 256}[SIZE]
 CI = SIZE == "ci"
+# The grids of the grid studies (Figs. 12, 20b), coarsest first, the main grid last,
+# and the study grid of the dearest step studies (Fig. 24's added rows).
+GRIDS = {"ci": (16, 16), "small": (32, 48, 64), "paper": (64, 128, 256)}[SIZE]
+NS = {"ci": 16, "small": 32, "paper": 128}[SIZE]
+assert NS in GRIDS[:-1]  # the step studies on NS reuse its 81-point runs
 # Figures are saved to JAXCONTACT_NOTEBOOK_OUT, by default out/notebooks (a notebook
 # also shows them inline).
 OUT = os.environ.get("JAXCONTACT_NOTEBOOK_OUT") or os.path.join("out", "notebooks")
@@ -62,6 +80,9 @@ A0 = float(P.table2_hertz().contact_radius)
 P0 = float(P.table2_hertz().peak_pressure)
 START = time.perf_counter()
 VERDICTS = []  # one dict per claim, in paper order
+CHECKS = []  # (what, passed) of every check, in order
+SOLVES = []  # one dict per solve: label, grid, steps, seconds, steps not converged
+VERDICT_VALUES = ("holds", "partly", "differs")
 
 
 def steps(paper_value):
@@ -114,41 +135,59 @@ def canonical(scene):
 
 def solve(scene, label):
     start = time.perf_counter()
-    sol = jax.tree_util.tree_map(np.asarray, jc.solve(canonical(scene)))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", jc.TimeStepWarning)
+        sol = jax.tree_util.tree_map(np.asarray, jc.solve(canonical(scene)))
+    unstable = any(issubclass(w.category, jc.TimeStepWarning) for w in caught)
+    seconds = time.perf_counter() - start
     bad = int((~sol.converged).sum())
+    SOLVES.append(dict(label=label, grid=int(scene.grid.shape[0]),
+                       steps=int(scene.times.shape[0]), seconds=round(seconds, 2),
+                       not_converged=bad, time_step_warning=unstable))
     print(
         f"[{label}] {scene.times.shape[0]} steps on {scene.grid.shape[0]}^2: "
-        f"{time.perf_counter() - start:.1f} s, "
+        f"{seconds:.1f} s, "
         f"{'all converged' if not bad else f'{bad} steps NOT converged'}"
+        + (" (jc.TimeStepWarning: the step is unstable)" if unstable else "")
     )
     return sol
 
 
 def check(condition, what):
     """A physical check that holds at every size (asserted: the CI run fails if not)."""
+    CHECKS.append(dict(check=what, passed=bool(condition)))
     print(f"  check: {what}: {'ok' if condition else 'FAILED'}")
+    if not condition and VERDICT_FILE:  # the record says which check failed
+        write_verdicts()
     assert condition, what
 
 
-def verdict(study, claim, quantity, holds, ours, paper=None, values=None, why=None):
+def verdict(study, claim, quantity, criterion, result, ours, paper=None, values=None,
+            why=None):
     """Record and print the verdict on one claim of the paper.
 
-    `holds`: decided from the computed numbers; `ours`: our number(s) as text;
-    `paper`: the paper's (for a `differs`); `values`: the numbers as a dict (the JSON
-    table, read by tests/test_paper_claims.py); `why`: for a `differs`, the cause and
+    `criterion`: what counts as `holds` (and `partly`), stated before the number: the
+    threshold and the spread (grid, step, step-to-step) it is compared with;
+    `result`: `holds`, `partly` or `differs` (a bool means holds / differs), decided
+    from the computed numbers; `ours`: our number(s) as text; `paper`: the paper's
+    (for a `partly` or `differs`); `values`: the numbers as a dict (the JSON table, read
+    by tests/test_paper_claims.py); `why`: for a `partly` or `differs`, the cause and
     the computation that shows it."""
-    holds = bool(holds)
+    if isinstance(result, (bool, np.bool_)):
+        result = "holds" if result else "differs"
+    if result not in VERDICT_VALUES:
+        raise ValueError(f"verdict {result!r} of {study}: use one of {VERDICT_VALUES}")
     paper = claim if paper is None else paper
-    line = f"holds ({ours})" if holds else f"differs ({ours} vs paper: {paper})"
+    line = f"{result} ({ours}" + ("" if result == "holds" else f" vs paper: {paper}")
     VERDICTS.append(
         dict(
-            study=study, claim=claim, quantity=quantity,
-            verdict="holds" if holds else "differs", ours=ours, paper=paper,
+            study=study, claim=claim, quantity=quantity, criterion=criterion,
+            verdict=result, ours=ours, paper=paper,
             values={k: float(v) for k, v in (values or {}).items()},
             why=why, grid=f"{N}x{N}", size=SIZE,
         )
     )
-    print(f"VERDICT {study}: {claim}\n  {quantity}: {line}")
+    print(f"VERDICT {study}: {claim}\n  criterion: {criterion}\n  {quantity}: {line})")
     if VERDICT_FILE:  # written as it goes: a run stopped part-way keeps its verdicts
         write_verdicts()
     if why:
@@ -158,8 +197,15 @@ def verdict(study, claim, quantity, holds, ours, paper=None, values=None, why=No
 def write_verdicts():
     os.makedirs(os.path.dirname(os.path.abspath(VERDICT_FILE)), exist_ok=True)
     with open(VERDICT_FILE, "w", encoding="utf-8") as f:
-        json.dump(dict(size=SIZE, grid=N, seconds=time.perf_counter() - START,
-                       verdicts=VERDICTS), f, indent=1)
+        json.dump(dict(size=SIZE, grid=N, grids=list(GRIDS), study_grid=NS,
+                       fig24_grids=[globals().get("NS24"), globals().get("NSX")],
+                       seconds=time.perf_counter() - START, verdicts=VERDICTS,
+                       checks=CHECKS, solves=SOLVES), f, indent=1)
+
+
+def cells(sol, k=-1):
+    """Contact cells at step k: one cell's share of the contact is 1 / cells."""
+    return int(sol.contact[k].sum())
 
 
 def ok(sol):
@@ -270,6 +316,8 @@ verdict(
     "Table 1",
     "a0 = 117 um and p0 = 3487 MPa for the Maxwell case's instantaneous modulus",
     "Hertz a0, p0 from the preset's (converted) modulus",
+    "holds if both are within 0.5 % of the paper's (its quoted digits: 117 um is "
+    "+-0.4 %)",
     abs(a_rel) < 5e-3 and abs(p_rel) < 5e-3,
     f"a0 = {float(h1.contact_radius) * 1e6:.1f} um ({a_rel:+.2%}), p0 = "
     f"{float(h1.peak_pressure) / 1e6:.0f} MPa ({p_rel:+.2%})",
@@ -356,6 +404,9 @@ verdict(
     "Fig. 4", "the contact region keeps growing with time (creep of the surface)",
     "contact radius a(2 tau) / a(0), surface displacement at the centre u_z(2 tau) / "
     "u_z(0) (jc.surface_displacement), and the whole profile against Lee & Radok's",
+    "holds if a grows by more than x1.2 and u_z by more than x1.5 over 2 tau (Lee & "
+    "Radok's growth is given beside ours; the grid's error on a is about one cell); "
+    "the profile's agreement is asserted as a check (2 % of the approach)",
     growth > 1.2 and u_growth > 1.5,
     f"a x{growth:.2f} (Lee-Radok x{lr_growth:.2f}), u_z x{u_growth:.2f} (Lee-Radok "
     f"x{lr_growth ** 2:.2f}); the profile is Lee-Radok's to {prof4:.1e} of the "
@@ -371,6 +422,9 @@ verdict(
     "pressure agrees with Lee & Radok",
     "p_max(2 tau) / p_max(0); position of the maximum at 2 tau; approach and pressure "
     "deviation from Lee-Radok",
+    "holds if the peak falls below 0.8 of its first value, the maximum lies beyond "
+    "0.5 a(t) at 2 tau (an edge spike, not a centre maximum) and the approach is "
+    "within 2 % of Lee & Radok's",
     peak_drop < 0.8 and r_peak > 0.5 and delta_err < 0.02,
     f"peak x{peak_drop:.2f}; maximum at r = {r_peak:.2f} a(t) (p_centre / p_max = "
     f"{centre:.2f}); approach within {delta_err:.2%} of Lee-Radok; pressure within "
@@ -413,7 +467,9 @@ verdict(
     "hysteresis with a residual indentation at W = 0",
     "at W = 50 N: p_max and contact cells, unloading / loading; approach at W = 0 over "
     "its maximum",
-    peak_ratio < 1 and cell_ratio >= 1 and residual > 0.02,
+    "holds if the unloading peak is lower by more than 1 %, the unloading contact "
+    "has at least as many cells, and the residual exceeds 2 % of the maximum approach",
+    peak_ratio < 0.99 and cell_ratio >= 1 and residual > 0.02,
     f"peak x{peak_ratio:.3f}, contact cells x{cell_ratio:.3f}, residual "
     f"{sol.approach[-1] * 1e6:.2f} um ({residual:.1%} of the maximum)",
     values=dict(peak_ratio=peak_ratio, cell_ratio=cell_ratio, residual=residual),
@@ -461,6 +517,9 @@ verdict(
     "the deformed sphere's distance from the rigid plane (jc.surface_displacement of "
     "the same solution: the half-space model sees only the composite gap): over the "
     "contact, and everywhere against Lee & Radok's",
+    "holds if the deformed sphere meets the plane over the contact to 1e-5 of the "
+    "approach (the solver's tolerance is ~1e-8); the stand-off against Lee & Radok's "
+    "is asserted as a check (2 %)",
     flat < 1e-5,
     f"the sphere is flat against the plane to {flat:.0e} of the approach and stands "
     f"off it as Lee-Radok's profile to {sep7:.1e}; pressure identical by construction",
@@ -480,6 +539,8 @@ p_rel = P0 / P.TABLE2["p0"] - 1
 verdict(
     "Table 2", "a0 = 588.7 um and p0 = 0.2067 MPa for the instantaneous modulus",
     "Hertz a0, p0 from the preset's (converted) modulus",
+    "holds if both are within 0.5 % of the paper's (its quoted digits: 0.2067 MPa is "
+    "+-0.02 %)",
     abs(a_rel) < 5e-3 and abs(p_rel) < 5e-3,
     f"a0 = {A0 * 1e6:.1f} um ({a_rel:+.2%}), p0 = {P0 / 1e6:.4f} MPa ({p_rel:+.2%})",
     "588.7 um, 0.2067 MPa", values=dict(a_rel=a_rel, p_rel=p_rel),
@@ -518,6 +579,9 @@ rise = {r: max(edge_rise(o, k) for k in range(len(o.times)))
 verdict(
     "Fig. 8a-c,e", "Hertz-like pressure for ratios 2 and 4, edge spikes for 8 and 10",
     "farthest position of the pressure maximum from the centre over 3 tau, r / a(t)",
+    "holds if the maximum stays within 0.3 a(t) of the centre at every step for "
+    "ratios 2 and 4 (Hertz-like), and lies beyond 0.7 a(t) (an edge spike) at some "
+    "step for ratios 8 and 10",
     max(far[2], far[4]) < 0.3 and min(far[8], far[10]) > 0.7,
     ", ".join(f"ratio {r}: {far[r]:.2f}" for r in far)
     + " (largest edge rise: " + ", ".join(f"{rise[r]:.3f}" for r in rise) + " p_max)",
@@ -525,33 +589,83 @@ verdict(
     values={f"peak_r_ratio{r}": far[r] for r in far},
 )
 
-# Fig. 8d: ratio 10 with few time points (dt = 0.375 tau) against the paper's count.
-coarse = solve(P.zener(ratio=10, n=N, steps=9), "Fig. 8d, ratio 10, 9 points")
-fine_scene, fine = zener[10] if not CI else (None, None)
-if CI:
-    fine_scene = P.zener(ratio=10, n=N, steps=25)
-    fine = solve(fine_scene, "Fig. 8e, ratio 10, 25 points")
+# Fig. 8d: ratio 10 with fewer time points. The piecewise-constant scheme maps one
+# step's history to the next with the factor 1 - (mu_inf / mu_0) (1 - exp(-dt / tau))
+# for the Zener material: below -1 (9 points over 3 tau, dt = 0.375 tau) the scheme is
+# unstable (jc.TimeStepWarning); between -1 and 0 (17 points, dt = 0.19 tau) it is
+# stable but alternates, and the alternation decays over the first steps: the paper's
+# "oscillating results around the contacting edge during the early period".
+COARSE8 = (9, 17)
+coarse8, unstable8 = {}, {}
+for nt in COARSE8:
+    coarse8[nt] = solve(P.zener(ratio=10, n=N, steps=nt), f"Fig. 8d, ratio 10, {nt} "
+                        "points")
+    unstable8[nt] = SOLVES[-1]["time_step_warning"]
+# the fine run: the paper's 61 points; at CI size the 17 points again (no compile)
+fine_scene, fine = zener[10] if not CI else (P.zener(ratio=10, n=N, steps=17),
+                                             coarse8[17])
 
 
-def centre_swings(sol):
-    """Sign changes of the centre pressure's time increments (a held load: it should
-    fall monotonically) and its smallest value over its first value."""
-    pc = sol.pressure[:, N // 2, N // 2]
-    d = np.diff(pc)
-    return int(np.sum(np.sign(d[1:]) * np.sign(d[:-1]) < 0)), float(pc.min() / pc[0])
+def early_swings(scene, sol):
+    """Over the first tau (at least 5 points), on y = 0: the most sign changes of a
+    cell's pressure increments in time (a held load: a cell's pressure rises once as
+    the contact reaches it, then falls; two or more changes are an oscillation), in the
+    edge band 0.7 a(0) < |x| < a(tau) and at the centre, and the largest alternating
+    increment there over p0."""
+    x = np.abs(np.asarray(scene.grid.x))
+    early = np.asarray(sol.times) <= TAU * (1 + 1e-9)
+    early[:5] = True
+    k_tau = int(np.flatnonzero(early)[-1])
+    p = sol.pressure[early][:, :, sol.pressure.shape[2] // 2]  # (steps, nx), y = 0
+    d = np.diff(p, axis=0)
+    flips = np.sign(d[1:]) * np.sign(d[:-1]) < 0
+    swing = np.where(flips, np.minimum(np.abs(d[1:]), np.abs(d[:-1])), 0.0)
+    band = (x > 0.7 * radius(scene, sol, 0)) & (x < radius(scene, sol, k_tau))
+    centre = x <= x.min() + 1e-12
+    return (int(flips[:, band].sum(axis=0).max()),
+            int(flips[:, centre].sum(axis=0).max()), float(swing[:, band].max() / P0))
 
 
-sw_c, min_c = centre_swings(coarse)
-sw_f, min_f = centre_swings(fine)
+def step_factor(nt, ratio=10, window=3.0):
+    """The scheme's step-to-step factor 1 - ratio (1 - exp(-dt / tau)) at `nt` points
+    over `window` tau: below -1 unstable, between -1 and 0 a decaying alternation,
+    above 0 monotone."""
+    return 1 - ratio * (1 - math.exp(-window / (nt - 1)))
+
+
+sw8 = {nt: early_swings(fine_scene, s) for nt, s in coarse8.items()}  # same grid
+sw8["fine"] = early_swings(fine_scene, fine)
+stable = [nt for nt in COARSE8 if not unstable8[nt]]
+osc_stable = [nt for nt in stable if sw8[nt][0] >= 2]
+osc_unstable = [nt for nt in COARSE8 if unstable8[nt] and max(sw8[nt][:2]) >= 2]
+quiet_fine = sw8["fine"][0] <= 1
 verdict(
-    "Fig. 8d", "ratio 10 needs more time steps: with too few the early pressure "
-    "oscillates",
-    "sign changes of the centre pressure's increments; min p_centre / p_centre(0); "
-    f"9 points vs {len(fine.times)}",
-    sw_c > sw_f or min_c < 0.5 * min_f,
-    f"9 points: {sw_c} swings, min {min_c:.2f}; {len(fine.times)} points: {sw_f} "
-    f"swings, min {min_f:.2f}",
-    values=dict(swings_coarse=sw_c, swings_fine=sw_f, min_coarse=min_c, min_fine=min_f),
+    "Fig. 8d", "ratio 10 needs more time steps: with too few the pressure near the "
+    "contact edge oscillates early on",
+    "over the first tau on y = 0, sign changes of the pressure's time increments in "
+    "the edge band 0.7 a(0) < |x| < a(tau) (and at the centre), and the largest "
+    f"alternating increment / p0, at {', '.join(map(str, COARSE8))} points against "
+    f"{len(fine.times)}",
+    "holds if at a step where the scheme is stable (no jc.TimeStepWarning) an edge "
+    "cell swings (2 or more sign changes: up-down-up) and at the fine step none does "
+    "(at most 1: the single rise and fall of a cell the contact reaches); partly if "
+    "only an unstable step (jc.TimeStepWarning) oscillates",
+    "holds" if osc_stable and quiet_fine else (
+        "partly" if osc_unstable and quiet_fine else "differs"),
+    "; ".join(f"{nt} points (step factor {step_factor(nt):+.2f}"
+              f"{', unstable' if unstable8[nt] else ''}): edge {sw8[nt][0]}, centre "
+              f"{sw8[nt][1]} sign changes, swing {sw8[nt][2]:.3f} p0" for nt in COARSE8)
+    + f"; {len(fine.times)} points (factor {step_factor(len(fine.times)):+.2f}): edge "
+    f"{sw8['fine'][0]}, centre {sw8['fine'][1]}, swing {sw8['fine'][2]:.3f} p0",
+    values={f"edge_swings_{nt}": sw8[nt][0] for nt in COARSE8}
+    | {f"centre_swings_{nt}": sw8[nt][1] for nt in COARSE8}
+    | {f"swing_{nt}": sw8[nt][2] for nt in COARSE8}
+    | dict(edge_swings_fine=sw8["fine"][0], swing_fine=sw8["fine"][2]),
+    why=None if osc_stable and quiet_fine else (
+        f"the fine run ({len(fine.times)} points) alternates too: its step factor is "
+        "negative" if not quiet_fine else
+        "the only oscillation is the scheme's instability (jc.TimeStepWarning: the "
+        "step-to-step factor below -1), not an edge oscillation of a stable step"),
 )
 
 scene = P.zener(
@@ -565,6 +679,8 @@ verdict(
     "Fig. 8f", "with T = 6 tau the spikes are gone at the end (Hertz-like) and the "
     "contact is near steady after 5 tau",
     "position of the maximum at the end, r / a; approach change from 5 to 6 tau",
+    "holds if at 6 tau the maximum lies within 0.3 a of the centre and the approach "
+    "changes by less than 2 % from 5 to 6 tau",
     r_end < 0.3 and settle < 0.02,
     f"maximum at r = {r_end:.2f} a(t) (p_centre / p_max = {c_end:.3f}); approach "
     f"change {settle:.2%} from "
@@ -608,6 +724,9 @@ verdict(
     "more conformal",
     "u_z at the centre at 3 tau / at 0 (jc.surface_displacement), and a(3 tau) / a(0), "
     "ratio 2 vs 10; the profiles against Lee & Radok's",
+    "holds if ratio 10's centre displacement grows by more than 1.5 times ratio 2's "
+    "growth and its contact radius grows more; the profiles' agreement is asserted as "
+    "a check (2 % of the approach)",
     fig9[10][0] > 1.5 * fig9[2][0] and fig9[10][1] > fig9[2][1],
     f"u_z x{fig9[2][0]:.2f} vs x{fig9[10][0]:.2f}, a x{fig9[2][1]:.2f} vs "
     f"x{fig9[10][1]:.2f}; the profiles are Lee-Radok's to {prof9[2][0]:.1e} (ratio 2) "
@@ -639,6 +758,8 @@ jrate = np.diff(j)
 verdict(
     "Fig. 10", "no decreasing strain rate (linear creep compliance)",
     "creep compliance increment and approach increment, last step / first step",
+    "holds if the approach's rate at 6 tau is within 10 % of its first (the "
+    "compliance's is constant to 1e-9)",
     np.allclose(jrate, jrate[0], rtol=1e-9) and rates[-1] / rates[0] > 0.9,
     f"J(t) rate x{jrate[-1] / jrate[0]:.2f} (constant), approach rate "
     f"x{rates[-1] / rates[0]:.2f}",
@@ -654,6 +775,7 @@ r6, c6 = peak_position(scene, sol, -1)
 verdict(
     "Fig. 11", "the edge spikes persist up to 6 tau",
     "position of the pressure maximum at 6 tau, r / a",
+    "holds if the maximum lies beyond 0.5 a(t) at 6 tau",
     r6 > 0.5, f"r = {r6:.2f} a(t), p_centre / p_max = {c6:.3f}",
     values=dict(r_peak=r6),
 )
@@ -666,8 +788,17 @@ verdict(
 # pressure.
 
 # %%
-fig, ax = plt.subplots(1, 2, figsize=(10, 3.8))
+fig, ax = plt.subplots(1, 3, figsize=(15, 3.8))
 w12 = {}
+
+
+def rise_history(sol):
+    """(final / initial approach, largest edge rise, its time [s], rise at the end)."""
+    rises = [edge_rise(sol, k) for k in range(len(sol.times))]
+    return (sol.approach[-1] / sol.approach[0], max(rises),
+            float(sol.times[int(np.argmax(rises))]), rises[-1], rises)
+
+
 # At CI size 25 points (dt = 25 s): with 9 (dt = 75 s) the fictitious material's
 # constant-scheme amplification exceeds 1 (jc.TimeStepWarning) and it oscillates.
 for a, material, nt in ((ax[0], "pmma", 61), (ax[1], "fictitious", 121)):
@@ -675,19 +806,50 @@ for a, material, nt in ((ax[0], "pmma", 61), (ax[1], "fictitious", 121)):
     sol = solve(scene, f"Fig. 12, {material}")
     profiles(a, scene, sol, picks_of(sol), 1e-6, 1e6)
     a.set(title=f"Fig. 12: {material}", xlabel="x [um]", ylabel="p [MPa]")
-    rises = [edge_rise(sol, k) for k in range(len(sol.times))]
-    w12[material] = (sol.approach[-1] / sol.approach[0], max(rises), rises[-1],
-                     float(sol.times[int(np.argmax(rises))]))
+    w12[material, N] = rise_history(sol)
+# The fictitious material's spike on the coarser grids: is its size and time a property
+# of the material or of the grid?
+for n in GRIDS[:-1]:
+    scene = P.weichert("fictitious", n=n, steps=25 if CI else 121)
+    w12["fictitious", n] = rise_history(solve(scene, f"Fig. 12, fictitious, {n}^2"))
+for n in GRIDS:
+    ax[2].plot(sol.times, w12["fictitious", n][4], ".-", ms=3, label=f"{n}^2")
+ax[2].set(xlabel="t [s]", ylabel="edge rise / p_max",
+          title="Fig. 12: fictitious, grids")
+ax[2].legend(fontsize=7)
 show(fig, "fig12_weichert")
-pm, fi = w12["pmma"], w12["fictitious"]
+pm, fi = w12["pmma", N], w12["fictitious", N]
+fi_prev = w12["fictitious", GRIDS[-2]]
+t_shift = abs(fi[2] - fi_prev[2]) / fi[2]
+spike_everywhere = all(w12["fictitious", n][1] > 0.02 for n in GRIDS)
+base12 = pm[1] < 0.01 and fi[1] > 0.02 and fi[3] < 0.5 * fi[1]
 verdict(
     "Fig. 12", "PMMA: little creep, Hertz-like throughout; fictitious material: "
     "transient edge spikes, Hertz-like after a long time",
-    "creep (final / initial approach), largest edge rise over time and at 600 s",
-    pm[1] < 0.01 and fi[1] > 0.02 and fi[2] < 0.5 * fi[1],
-    f"PMMA x{pm[0]:.2f}, rise {pm[1]:.3f}; fictitious x{fi[0]:.2f}, rise {fi[1]:.3f} "
-    f"at {fi[3]:.0f} s, {fi[2]:.3f} at 600 s",
-    values=dict(pmma_rise=pm[1], fict_rise=fi[1], fict_rise_end=fi[2]),
+    "creep (final / initial approach), largest edge rise over time, its time and the "
+    f"rise at 600 s, at {', '.join(f'{n}^2' for n in GRIDS)}",
+    "holds if PMMA's largest rise stays below 0.01 p_max, the fictitious material's "
+    "exceeds 0.02 p_max on every grid and falls below half of it by 600 s, and the "
+    "time of its maximum moves by less than 25 % between the two finest grids; partly "
+    "if the transient spike is there but its time moves more (not grid-converged)",
+    "holds" if base12 and spike_everywhere and t_shift < 0.25 else (
+        "partly" if base12 else "differs"),
+    f"PMMA x{pm[0]:.2f}, rise {pm[1]:.3f}; fictitious x{fi[0]:.2f}, rise "
+    + ", ".join(f"{w12['fictitious', n][1]:.3f} at {w12['fictitious', n][2]:.0f} s "
+                f"({n}^2)" for n in GRIDS)
+    + f", {fi[3]:.3f} at 600 s",
+    "transient spikes",
+    values=dict(pmma_rise=pm[1], fict_rise=fi[1], fict_rise_end=fi[3],
+                fict_time=fi[2], fict_time_coarser=fi_prev[2], time_shift=t_shift)
+    | {f"fict_rise_{n}": w12["fictitious", n][1] for n in GRIDS},
+    why=None if base12 and spike_everywhere and t_shift < 0.25 else (
+        "the transient spike is there and gone by 600 s, as the paper says, but it is "
+        "small and not grid-converged: "
+        + ("it is below 0.02 p_max on a coarser grid; "
+           if not spike_everywhere else "")
+        + f"its maximum comes at {fi_prev[2]:.0f} s on {GRIDS[-2]}^2 and "
+        f"{fi[2]:.0f} s on {N}^2 ({t_shift:.0%} apart), its height {fi[1]:.3f} p_max"
+        if base12 else "PMMA's rise, or the fictitious material's, is not as stated"),
 )
 
 # %% [markdown]
@@ -771,18 +933,42 @@ for a in ax:
 show(fig, "fig13_15_coupled_normal")
 
 (s3, o3), (s10, o10) = normal_only[3], normal_only[10]
+# Fig. 13a-d: the pressure and the shear traction q_x along y = 0, front half (x >= 0,
+# as the paper plots them), normalised by the Hertz p0, at five times.
+fig, axes = plt.subplots(2, 2, figsize=(11, 6.5), sharex=True)
+for col, (ratio, (scene, sol)) in enumerate(normal_only.items()):
+    xs = np.asarray(scene.grid.x) / A0
+    front = xs >= 0
+    for k in picks_of(sol, 5):
+        label = f"t = {sol.times[k] / TAU:.2f} tau"
+        axes[0, col].plot(xs[front], row(sol.pressure[k])[front] / P0, ".-", ms=3,
+                          label=label)
+        axes[1, col].plot(xs[front], row(sol.shear[k, 0])[front] / P0, ".-", ms=3)
+    axes[0, col].set(ylabel="p / p0", title=f"Fig. 13{'ab'[col]}: ratio {ratio}")
+    axes[1, col].set(xlabel="x / a0", ylabel="q_x / p0",
+                     title=f"Fig. 13{'cd'[col]}: ratio {ratio}")
+    axes[0, col].legend(fontsize=7)
+show(fig, "fig13_profiles")
 peak0 = o3.pressure[0].max() / P0
+peak0_frictionless = zener[2][1].pressure[0].max() / P0
 rise13 = {r: max(edge_rise(o, k) for k in range(len(o.times)))
           for r, (s, o) in normal_only.items()}
 verdict(
     "Fig. 13a", "the peak pressure at t = 0 is above the Hertz pressure (coupling)",
-    "p_max(0) / p0 (Hertz, Table 2)", peak0 > 1.0, f"{peak0:.3f}",
-    values=dict(peak0=peak0),
+    "p_max(0) / p0 (Hertz, Table 2), against the frictionless solve on the same grid "
+    "(Fig. 8 at t = 0)",
+    "holds if p_max(0) exceeds the frictionless peak on the same grid by more than 1 % "
+    "(the grid's own error on the peak cancels)",
+    peak0 / peak0_frictionless > 1.01,
+    f"{peak0:.3f} (frictionless: {peak0_frictionless:.3f})",
+    values=dict(peak0=peak0, peak0_frictionless=peak0_frictionless),
 )
 verdict(
     "Fig. 13b,d", "ratio 10 shows extra pressure spikes and irregular shear tractions; "
     "ratio 3 stays Hertz-like",
     "largest off-centre rise of the pressure over time (edge_rise), ratio 3 vs 10",
+    "holds if ratio 10's rise exceeds 0.02 p_max (a few boundary cells' worth of "
+    "pressure on the finer grids) and ratio 3's is smaller",
     rise13[10] > 0.02 and rise13[3] < rise13[10],
     f"ratio 3: {rise13[3]:.3f}, ratio 10: {rise13[10]:.3f} p_max",
     "spikes for ratio 10",
@@ -812,6 +998,8 @@ verdict(
     "Fig. 14", "a central stick disc inside a slip annulus at all times, both ratios",
     "stick cells / contact cells inside the stick zone's outer radius (1 = a full "
     "disc), worst step; the centre cell sticks at every step",
+    "holds if at every step more than 80 % of the contact cells inside the stick "
+    "zone's outer radius stick and the centre cell sticks",
     all(d[0] > 0.8 and d[1] for d in disc.values()),
     ", ".join(f"ratio {r}: {d[0]:.2f}, centre sticks {d[1]}" for r, d in disc.items()),
     values={f"disc_fill_{r}": d[0] for r, d in disc.items()},
@@ -822,6 +1010,8 @@ grow = {r: (o.stick[-1].sum() / o.stick[0].sum(),
 verdict(
     "Fig. 15a", "stick and contact areas grow with time, more for the higher ratio",
     "A_s and A_c at the end over at t = 0, ratios 3 and 10",
+    "holds if both areas grow for both ratios and grow more for ratio 10 (the "
+    "growths differ by far more than one cell)",
     grow[10][0] > grow[3][0] > 1 and grow[10][1] > grow[3][1] > 1,
     ", ".join(f"ratio {r}: A_s x{g[0]:.2f}, A_c x{g[1]:.2f}" for r, g in grow.items()),
     values={f"stick_growth_{r}": g[0] for r, g in grow.items()}
@@ -833,6 +1023,8 @@ verdict(
     "Fig. 15b", "the stick ratio barely differs between the two materials (insensitive "
     "to viscoelasticity under constant inputs)",
     "range of the stick ratio over both ratios and all times",
+    "holds if the stick ratio stays within a range of 0.1 over both ratios and all "
+    "times",
     spread < 0.1,
     f"ratio 3: {o3.stick_ratio.min():.3f}-{o3.stick_ratio.max():.3f}, ratio 10: "
     f"{o10.stick_ratio.min():.3f}-{o10.stick_ratio.max():.3f} (exact in the limit: the "
@@ -910,25 +1102,43 @@ for a in ax:
 show(fig, "fig16_lc_dc")
 pred_err = max(abs(elastic_stick[float(f)] - dc.stick_ratio[k])
                for f, k in zip(f_probe, (0, len(f_dc) // 2, len(f_dc) - 1)))
+
+
+def jitter(sol, last=10):
+    """The stick ratio's largest change from one step to the next over the last
+    `last` steps: the step-to-step spread a difference between two runs' final values
+    is compared with (the trend included, so an upper bound)."""
+    return float(np.abs(np.diff(sol.stick_ratio[-last - 1:])).max())
+
+
 verdict(
     "Fig. 16a (loads)", "F_x constant in LC, relaxing in DC",
     "F_x / (mu W) at 0 and at the end",
+    "holds if LC's F_x stays constant to 1e-6 W and DC's falls by more than 10 %",
     np.ptp(lc.tangential_force[:, 0]) < 1e-6 * W and f_dc[-1] < 0.9 * f_dc[0],
     f"LC {lc.tangential_force[0, 0] / (MU * W):.3f} -> "
     f"{lc.tangential_force[-1, 0] / (MU * W):.3f}; DC {f_dc[0]:.3f} -> {f_dc[-1]:.3f}",
     values=dict(f_dc_end=f_dc[-1]),
 )
+jit16 = max(jitter(lc), jitter(dc))
+d16 = dc.stick_ratio[-1] - lc.stick_ratio[-1]
 verdict(
     "Fig. 16a (stick)", "the DC stick ratio ends lower than LC's (slightly)",
     "stick ratio at the end, DC vs LC",
-    dc.stick_ratio[-1] < lc.stick_ratio[-1],
-    f"DC {dc.stick_ratio[-1]:.3f}, LC {lc.stick_ratio[-1]:.3f}",
+    "holds if DC's is lower by more than the step-to-step jitter (the largest change "
+    "of either stick ratio over its last 10 steps); differs if higher by more than it; "
+    "partly if within it",
+    "holds" if d16 < -jit16 else ("differs" if d16 > jit16 else "partly"),
+    f"DC {dc.stick_ratio[-1]:.3f}, LC {lc.stick_ratio[-1]:.3f} (difference "
+    f"{d16:+.4f}; jitter {jit16:.4f})",
     "DC slightly lower",
     values=dict(stick_dc=dc.stick_ratio[-1], stick_lc=lc.stick_ratio[-1],
-                elastic_prediction_err=pred_err),
-    why=f"DC's tangential load relaxes (F_x / mu W {f_dc[0]:.2f} -> {f_dc[-1]:.2f}) "
-    "while LC's stays 0.50, and a lower load ratio leaves MORE stick: one elastic "
-    "coupled step at those ratios gives stick ratios "
+                jitter=jit16, elastic_prediction_err=pred_err),
+    why=None if d16 < -jit16 else
+    f"DC's tangential load relaxes (F_x / mu W {f_dc[0]:.2f} -> {f_dc[-1]:.2f}) "
+    f"while LC's stays {lc.tangential_force[-1, 0] / (MU * W):.2f}, and a lower load "
+    "ratio leaves MORE stick: one elastic coupled step at those ratios gives stick "
+    "ratios "
     + ", ".join(f"{v:.3f} (f = {f:.2f})" for f, v in elastic_stick.items())
     + f", within {pred_err:.3f} of DC's own at those times. So DC's stick ratio is the "
     "one of its current load ratio, higher than LC's; the paper's 'due to the relaxed "
@@ -937,14 +1147,24 @@ verdict(
 as_growth = {k: o.stick[-1].sum() / max(o.stick[0].sum(), 1)
              for k, (s, o) in cases.items()}
 ac_growth = {k: o.contact[-1].sum() / o.contact[0].sum() for k, (s, o) in cases.items()}
+# the growth differences in cells of the end area (one cell is the resolution)
+as_cells = (as_growth["dc"] - as_growth["lc"]) * lc.stick[0].sum()
+ac_cells = (ac_growth["lc"] - ac_growth["dc"]) * lc.contact[0].sum()
 verdict(
     "Fig. 16b", "the stick area grows faster in DC, the contact area faster in LC",
-    "A_s and A_c at the end over at t = 0",
-    as_growth["dc"] > as_growth["lc"] and ac_growth["lc"] > ac_growth["dc"],
-    f"A_s: DC x{as_growth['dc']:.2f}, LC x{as_growth['lc']:.2f}; A_c: LC "
-    f"x{ac_growth['lc']:.3f}, DC x{ac_growth['dc']:.3f}",
+    "A_s and A_c at the end over at t = 0; the differences in cells",
+    "holds if DC's stick area grows more than LC's and LC's contact area more than "
+    "DC's, each by more than 2 cells (the boundary's resolution); partly if one of "
+    "the two",
+    "holds" if as_cells > 2 and ac_cells > 2 else (
+        "partly" if as_cells > 2 or ac_cells > 2 else "differs"),
+    f"A_s: DC x{as_growth['dc']:.2f}, LC x{as_growth['lc']:.2f} ({as_cells:+.0f} "
+    f"cells); A_c: LC x{ac_growth['lc']:.3f}, DC x{ac_growth['dc']:.3f} "
+    f"({ac_cells:+.0f} cells)",
     values=dict(as_dc=as_growth["dc"], as_lc=as_growth["lc"], ac_lc=ac_growth["lc"],
-                ac_dc=ac_growth["dc"]),
+                ac_dc=ac_growth["dc"], as_cells=as_cells, ac_cells=ac_cells),
+    why=None if as_cells > 2 and ac_cells > 2 else
+    "one of the two growth differences is within 2 cells of the boundary at this grid",
 )
 
 fig, axes = plt.subplots(2, 4, figsize=(12, 6))
@@ -954,13 +1174,18 @@ for axrow, (name, (scene, sol)) in zip(axes, cases.items()):
 show(fig, "fig17_stick_maps")
 cen = {k: (stick_centroid(s, o, 0), stick_centroid(s, o, -1))
        for k, (s, o) in cases.items()}
+cell17 = float(lc_scene.grid.spacing[0]) / radius(lc_scene, lc, -1)
+move17 = max(0.05, 2 * cell17)
 verdict(
     "Fig. 17", "the LC stick zone keeps its shape and place; the DC one moves from the "
     "rear towards the front",
     "x of the stick zone's centroid / a, at 0 and at the end",
-    abs(cen["lc"][1] - cen["lc"][0]) < 0.05 and cen["dc"][1] - cen["dc"][0] > 0.05,
+    "holds if the LC centroid moves by less than, and the DC one forward by more "
+    "than, 0.05 a or two cells, whichever is larger",
+    abs(cen["lc"][1] - cen["lc"][0]) < move17
+    and cen["dc"][1] - cen["dc"][0] > move17,
     f"LC {cen['lc'][0]:+.2f} -> {cen['lc'][1]:+.2f}; DC {cen['dc'][0]:+.2f} -> "
-    f"{cen['dc'][1]:+.2f}",
+    f"{cen['dc'][1]:+.2f} (threshold {move17:.3f} a)",
     values=dict(lc_shift=cen["lc"][1] - cen["lc"][0],
                 dc_shift=cen["dc"][1] - cen["dc"][0]),
 )
@@ -976,7 +1201,32 @@ def halves(scene, sol, field, k=-1):
             float(x[np.argmax(np.where(c, f, -np.inf))] / a))
 
 
-fig, ax = plt.subplots(1, 3, figsize=(14, 3.6))
+# Figs. 18-19 over the whole history: at every step, the rear and front means of p,
+# |q_x| and q_x, DC against LC, and the peak.
+hist = {name: [] for name in ("p", "peak", "abs", "signed")}
+for k in range(len(lc.times)):
+    pl, pd = halves(lc_scene, lc, lc.pressure[k], k), halves(dc_scene, dc,
+                                                               dc.pressure[k], k)
+    ql, qd = halves(lc_scene, lc, lc.shear[k, 0], k), halves(dc_scene, dc,
+                                                             dc.shear[k, 0], k)
+    ml = halves(lc_scene, lc, np.abs(lc.shear[k, 0]), k)
+    md = halves(dc_scene, dc, np.abs(dc.shear[k, 0]), k)
+    hist["p"].append((pd[0] - pl[0], pd[1] - pl[1]))
+    hist["peak"].append((dc.pressure[k].max() / lc.pressure[k].max(), pd[2] - pl[2]))
+    hist["abs"].append((md[0] - ml[0], md[1] - ml[1]))
+    hist["signed"].append((qd[0] - ql[0], qd[1] - ql[1]))
+hist = {key: np.asarray(v) for key, v in hist.items()}
+later = np.arange(len(lc.times)) >= 1  # step 0: DC and LC carry the same F_x
+pattern = {  # the paper's pattern, at each step: DC lower at the rear, higher in front
+    "p": (hist["p"][:, 0] < 0) & (hist["p"][:, 1] > 0),
+    "peak": (hist["peak"][:, 0] > 1) & (hist["peak"][:, 1] > 0),
+    # q_x: DC higher at the rear, lower at the front
+    "abs": (hist["abs"][:, 0] > 0) & (hist["abs"][:, 1] < 0),
+    "signed": (hist["signed"][:, 0] > 0) & (hist["signed"][:, 1] < 0),
+}
+share = {key: float(v[later].mean()) for key, v in pattern.items()}
+
+fig, ax = plt.subplots(1, 4, figsize=(18, 3.6))
 for name, (scene, sol) in cases.items():
     style = "-" if name == "lc" else "o"
     for k in picks_of(sol, 3):
@@ -985,73 +1235,98 @@ for name, (scene, sol) in cases.items():
                    label=f"{name} {sol.times[k] / TAU:.1f}")
         ax[1].plot(xs, row(sol.shear[k, 0]) / P0, style, ms=2)
         ax[2].plot(xs, sol.shear[k, 1, N // 2, :] / P0, style, ms=2)
+for key, label in (("p", "p"), ("abs", "|q_x|"), ("signed", "q_x")):
+    ax[3].plot(lc.times / TAU, hist[key][:, 0] / P0, label=f"{label}, rear")
+    ax[3].plot(lc.times / TAU, hist[key][:, 1] / P0, "--", label=f"{label}, front")
+ax[3].axhline(0, color="k", lw=0.6)
 ax[0].set(xlabel="x / a0", ylabel="p / p0", title="Fig. 18")
 ax[1].set(xlabel="x / a0", ylabel="q_x / p0", title="Fig. 19a")
 ax[2].set(xlabel="y / a0", ylabel="q_y / p0", title="Fig. 19b")
+ax[3].set(xlabel="t / tau", ylabel="DC - LC, mean over the half / p0",
+          title="Figs. 18-19 over time")
 ax[0].legend(fontsize=6)
+ax[3].legend(fontsize=6)
 show(fig, "fig18_19_tractions")
 p_lc, p_dc = (halves(lc_scene, lc, lc.pressure[-1]),
               halves(dc_scene, dc, dc.pressure[-1]))
 pk = dc.pressure[-1].max() / lc.pressure[-1].max()
 cell = float(lc_scene.grid.spacing[0]) / radius(lc_scene, lc, -1)
+HISTORY = ("holds if the pattern holds at every step after the first (at t = 0 DC and "
+           "LC carry the same load); partly if it holds at the end but not throughout "
+           "(the share of steps is given)")
+
+
+def over_history(key):
+    """holds / partly / differs of a pattern over the steps after the first."""
+    if share[key] == 1.0:
+        return "holds"
+    return "partly" if pattern[key][-1] else "differs"
+
+
 verdict(
     "Fig. 18 (rear/front)", "DC has lower pressure at the rear and higher at the front "
     "than LC",
-    "at the end: mean pressure on the rear and front contact halves of y = 0",
-    p_dc[0] < p_lc[0] and p_dc[1] > p_lc[1],
+    "mean pressure on the rear and front contact halves of y = 0, DC - LC, at every "
+    "step (the number: at the end)",
+    HISTORY, over_history("p"),
     f"rear {p_dc[0] / P0:.4f} vs {p_lc[0] / P0:.4f}, front {p_dc[1] / P0:.4f} vs "
-    f"{p_lc[1] / P0:.4f} p0 (DC vs LC)",
+    f"{p_lc[1] / P0:.4f} p0 (DC vs LC) at the end; the pattern at {share['p']:.0%} "
+    "of the steps after the first",
     values=dict(rear_dc=p_dc[0] / P0, rear_lc=p_lc[0] / P0, front_dc=p_dc[1] / P0,
-                front_lc=p_lc[1] / P0),
+                front_lc=p_lc[1] / P0, share=share["p"]),
+    why=None if share["p"] == 1.0 else
+    f"the pattern holds at {share['p']:.0%} of the steps: early on, while DC's F_x has "
+    "barely relaxed, the two pressures differ by less than the rear/front shift",
 )
-peak_holds = pk > 1 and p_dc[2] > p_lc[2]
 verdict(
     "Fig. 18 (peak)", "DC has a higher pressure peak, closer to the front",
-    "at the end: p_max DC / LC; x / a of the maximum on y = 0",
-    peak_holds,
+    "p_max DC / LC and x / a of the maximum on y = 0, at every step (the number: at "
+    "the end)",
+    HISTORY, over_history("peak"),
     f"peak DC / LC {pk:.4f}; maximum at x / a = {p_dc[2]:+.3f} (DC) vs {p_lc[2]:+.3f} "
-    f"(LC); one cell = {cell:.3f} a",
+    f"(LC) at the end; one cell = {cell:.3f} a; the pattern at {share['peak']:.0%} "
+    "of the steps after the first",
     "a higher DC peak, nearer the front",
-    values=dict(peak_ratio=pk, x_peak_dc=p_dc[2], x_peak_lc=p_lc[2], cell=cell),
+    values=dict(peak_ratio=pk, x_peak_dc=p_dc[2], x_peak_lc=p_lc[2], cell=cell,
+                share=share["peak"]),
     why="both cases carry the same W on a contact of nearly the same size (creep under "
     f"the same load: A_c x{ac_growth['lc']:.2f} and x{ac_growth['dc']:.2f}), so the "
-    "central peak is the same: the rear-to-front shift above (a few % of the mean) "
-    f"moves {abs(pk - 1):.1%} of the peak and not its position by a cell. At 256^2 "
-    "(benchmarks/notes/paper_claims.md): DC / LC 0.998, both maxima in the same cell "
-    "(x = -0.007 a). The paper's higher DC peak is not reproduced at any grid we ran"
-    if not peak_holds else None,
+    "central peak is the same: the rear-to-front shift of Fig. 18 (rear/front) moves "
+    f"{abs(pk - 1):.1%} of the peak at the end and its position by less than a cell "
+    f"(maxima {abs(p_dc[2] - p_lc[2]) / cell:.1f} cells apart)"
+    if share["peak"] < 1.0 else None,
 )
 q_lc, q_dc = (halves(lc_scene, lc, lc.shear[-1, 0]),
               halves(dc_scene, dc, dc.shear[-1, 0]))
 m_lc = halves(lc_scene, lc, np.abs(lc.shear[-1, 0]))
 m_dc = halves(dc_scene, dc, np.abs(dc.shear[-1, 0]))
 fx_end = dc.tangential_force[-1, 0] / lc.tangential_force[-1, 0]
-signed = q_dc[0] > q_lc[0] and q_dc[1] < q_lc[1]
-magnitude = m_dc[0] > m_lc[0] and m_dc[1] < m_lc[1]
+both19 = over_history("abs") == "holds" and over_history("signed") == "holds"
+one19 = "holds" in (over_history("abs"), over_history("signed"))
 verdict(
     "Fig. 19", "DC has higher q_x at the rear and lower q_x at the front than LC",
-    "at the end: mean |q_x| (and signed q_x) on the rear and front contact halves of "
-    "y = 0, DC vs LC",
-    magnitude,
+    "mean |q_x| and signed q_x on the rear and front contact halves of y = 0, DC - LC, "
+    "at every step (the numbers: at the end)",
+    "holds if the pattern holds for the signed q_x (what the paper plots) and for "
+    "|q_x| at every step after the first; partly if for one of them only",
+    "holds" if both19 else ("partly" if one19 else "differs"),
     f"|q_x|: rear {m_dc[0] / P0:.4f} vs {m_lc[0] / P0:.4f}, front {m_dc[1] / P0:.4f} "
     f"vs {m_lc[1] / P0:.4f} p0; signed: rear {q_dc[0] / P0:+.4f} vs "
-    f"{q_lc[0] / P0:+.4f}, front {q_dc[1] / P0:+.4f} vs {q_lc[1] / P0:+.4f} (DC vs LC)",
+    f"{q_lc[0] / P0:+.4f}, front {q_dc[1] / P0:+.4f} vs {q_lc[1] / P0:+.4f} (DC vs LC) "
+    f"at the end; the pattern at {share['abs']:.0%} (|q_x|) and {share['signed']:.0%} "
+    "(signed) of the steps after the first",
     "DC higher at the rear, lower at the front",
     values=dict(rear_abs_ratio=m_dc[0] / m_lc[0], front_abs_ratio=m_dc[1] / m_lc[1],
                 rear_signed_dc=q_dc[0] / P0, rear_signed_lc=q_lc[0] / P0,
-                fx_ratio=fx_end),
-    why=None if magnitude else "neither the magnitude nor the signed q_x shows the "
-    "paper's pattern at this grid",
+                fx_ratio=fx_end, share_abs=share["abs"], share_signed=share["signed"]),
+    why=None if both19 else (
+        "the signed q_x is lower in DC on both halves, because q_x is negative over "
+        "most of the rear: the coupling's friction points outward (away from the "
+        "centre) under the pressure, against F_x at the rear; DC's F_x has relaxed to "
+        f"{fx_end:.2f} x LC's, so the outward (negative) rear shear dominates more "
+        "there. The paper's pattern is that of |q_x|" if over_history("abs") == "holds"
+        else "neither |q_x| nor the signed q_x shows the paper's pattern throughout"),
 )
-if magnitude and not signed:
-    print(
-        "  note: in MAGNITUDE, as the paper says. The signed q_x is lower in DC on "
-        "both halves, because q_x is negative over most of the rear: the coupling's "
-        "friction points outward (away from the centre) under the pressure, against "
-        f"F_x at the rear; DC's F_x has relaxed to {fx_end:.2f} x LC's, so the outward "
-        "(negative) rear shear dominates more there. 'Higher q_x at the rear' is "
-        "|q_x|: the paper's figure plots magnitudes, or the opposite sign at the rear"
-    )
 
 # %% [markdown]
 # ## Fig. 20: DC with ratios 3, 5, 10
@@ -1059,53 +1334,96 @@ if magnitude and not signed:
 # The paper: the areas grow at different rates (20a); a higher ratio gives a lower
 # stick ratio, but the differences are small (20b).
 
+# Fig. 20b's differences are small, so the order of the stick ratios is decided only
+# where it exceeds the resolution: the change of each value from the next coarser grid
+# (three grids), from doubling the time points (on the study grid NS) and the
+# step-to-step jitter at the end.
+
 # %%
-fig, ax = plt.subplots(1, 2, figsize=(11, 3.8))
-f20 = {}
+fig, ax = plt.subplots(1, 3, figsize=(16, 3.8))
+f20, grid20 = {}, {}
+NT20 = steps(81)
 for ratio in (3, 5, 10):
-    scene = P.dc(ratio=ratio, n=N, steps=steps(81), duration=duration(2.0, 0.5))
+    scene = P.dc(ratio=ratio, n=N, steps=NT20, duration=duration(2.0, 0.5))
     sol = solve(scene, f"Fig. 20, ratio {ratio}")
     f = sol.tangential_force[:, 0] / (MU * sol.normal_force)
     f20[ratio] = (sol.stick_ratio[-1], f[-1],
-                  sol.contact[-1].sum() / sol.contact[0].sum())
+                  sol.contact[-1].sum() / sol.contact[0].sum(), jitter(sol))
     ax[0].plot(sol.times / TAU, sol.contact.sum(axis=(1, 2)) / N**2, ".-",
                label=f"A_c, ratio {ratio}")
     ax[0].plot(sol.times / TAU, sol.stick.sum(axis=(1, 2)) / N**2, "--",
                label=f"A_s, ratio {ratio}")
     ax[1].plot(sol.times / TAU, sol.stick_ratio, ".-", label=f"stick, ratio {ratio}")
     ax[1].plot(sol.times / TAU, f, ":", label=f"F_x / mu W, ratio {ratio}")
+    grid20[ratio, N, NT20] = sol.stick_ratio[-1]
+    for n in GRIDS[:-1]:
+        s = solve(P.dc(ratio=ratio, n=n, steps=NT20, duration=duration(2.0, 0.5)),
+                  f"Fig. 20b, ratio {ratio}, {n}^2")
+        grid20[ratio, n, NT20] = s.stick_ratio[-1]
+    s = solve(P.dc(ratio=ratio, n=NS, steps=2 * NT20 - 1, duration=duration(2.0, 0.5)),
+              f"Fig. 20b, ratio {ratio}, {NS}^2, {2 * NT20 - 1} points")
+    grid20[ratio, NS, 2 * NT20 - 1] = s.stick_ratio[-1]
+for ratio in (3, 5, 10):
+    ax[2].plot(GRIDS, [grid20[ratio, n, NT20] for n in GRIDS], "o-",
+               label=f"ratio {ratio}, {NT20} points")
+    ax[2].plot([NS], [grid20[ratio, NS, 2 * NT20 - 1]], "x", ms=8,
+               label=f"ratio {ratio}, {2 * NT20 - 1} points")
 ax[0].set(xlabel="t / tau", title="Fig. 20a")
 ax[1].set(xlabel="t / tau", title="Fig. 20b")
+ax[2].set(xlabel="cells a side", ylabel="stick ratio at the end",
+          title="Fig. 20b: grid and step")
 for a in ax:
     a.legend(fontsize=6)
 show(fig, "fig20_dc_ratios")
-ordered = f20[3][0] > f20[5][0] > f20[10][0]
-spread20 = max(v[0] for v in f20.values()) - min(v[0] for v in f20.values())
-f_ordered = f20[3][1] > f20[5][1] > f20[10][1]
+c20 = {r: v[0] for r, v in f20.items()}
+grid_change = max(abs(grid20[r, N, NT20] - grid20[r, GRIDS[-2], NT20]) for r in c20)
+step_change = max(abs(grid20[r, NS, 2 * NT20 - 1] - grid20[r, NS, NT20]) for r in c20)
+jit20 = max(v[3] for v in f20.values())
+res20 = max(grid_change, step_change, jit20)
+gaps = (c20[3] - c20[5], c20[5] - c20[10])  # > 0: decreasing with the ratio
+spread20 = max(c20.values()) - min(c20.values())
 verdict(
     "Fig. 20a", "the contact and stick areas grow at different rates for the three "
     "ratios", "A_c at the end over at t = 0",
-    f20[10][2] > f20[5][2] > f20[3][2],
+    "holds if the three growths differ, in the order of the ratio, by more than 2 % "
+    "each",
+    f20[10][2] > 1.02 * f20[5][2] and f20[5][2] > 1.02 * f20[3][2],
     ", ".join(f"ratio {r}: x{v[2]:.3f}" for r, v in f20.items()),
     values={f"contact_growth_{r}": v[2] for r, v in f20.items()},
 )
 verdict(
     "Fig. 20b", "a higher ratio gives a lower stick ratio, with small differences",
-    "stick ratio at 2 tau for ratios 3, 5, 10 (and F_x / mu W)",
-    ordered and spread20 < 0.1,
-    ", ".join(f"ratio {r}: {v[0]:.3f} (f = {v[1]:.3f})" for r, v in f20.items()),
+    f"stick ratio at the end for ratios 3, 5, 10 (and F_x / mu W) at {N}^2; the "
+    f"resolution: the largest change from {GRIDS[-2]}^2 to {N}^2, from {NT20} to "
+    f"{2 * NT20 - 1} points at {NS}^2, and the step-to-step jitter",
+    "holds if the stick ratio falls from each ratio to the next by more than the "
+    "resolution and the spread is below 0.1; differs if it rises by more than the "
+    "resolution at either step; partly if the spread is small (as the paper says) but "
+    "the order is within the resolution",
+    "holds" if min(gaps) > res20 and spread20 < 0.1 else (
+        "differs" if min(gaps) < -res20 else ("partly" if spread20 < 0.1
+                                              else "differs")),
+    ", ".join(f"ratio {r}: {v[0]:.4f} (f = {v[1]:.3f})" for r, v in f20.items())
+    + f"; steps between ratios {gaps[0]:+.4f}, {gaps[1]:+.4f} against a resolution "
+    f"of {res20:.4f} (grid {grid_change:.4f}, time step {step_change:.4f}, jitter "
+    f"{jit20:.4f}); "
+    + "; ".join(f"{n}^2: " + ", ".join(f"{grid20[r, n, NT20]:.4f}" for r in c20)
+                for n in GRIDS),
     "decreasing with the ratio",
-    values={f"stick_{r}": v[0] for r, v in f20.items()} | {"spread": spread20},
-    why=f"the differences are small ({spread20:.3f}) as the paper says, but a higher "
-    "ratio relaxes F_x more ("
-    + ", ".join(f"f = {v[1]:.3f}" for v in f20.values())
+    values={f"stick_{r}": v for r, v in c20.items()}
+    | dict(spread=spread20, resolution=res20, grid_change=grid_change,
+           step_change=step_change, jitter=jit20, gap_3_5=gaps[0], gap_5_10=gaps[1])
+    | {f"stick_{r}_{n}": grid20[r, n, NT20] for r in c20 for n in GRIDS},
+    why=None if min(gaps) > res20 and spread20 < 0.1 else
+    f"the differences are small ({spread20:.4f}) as the paper says; "
+    + ("their order is within what the grid, the step and the jitter move "
+       f"({res20:.4f}), so it is not resolved"
+       if min(gaps) >= -res20 else
+       "the stick ratio rises with the ratio beyond the resolution")
+    + ". The physics points the other way from the paper: a higher ratio relaxes F_x "
+    "more (" + ", ".join(f"f = {v[1]:.3f}" for v in f20.values())
     + " for ratios 3, 5, 10), and a lower load ratio leaves more stick (Fig. 16a's "
-    "elastic steps), so the physics orders the stick ratio the other way: "
-    + ("here it rises with the ratio, as the load ratios predict"
-       if f20[3][0] < f20[5][0] < f20[10][0] else
-       "here the differences are within a few boundary cells of this grid, no order")
-    + f" (one cell = {1 / dc.contact[-1].sum():.4f} of the contact)"
-    if not (ordered and spread20 < 0.1) else None,
+    "elastic steps)",
 )
 
 # %% [markdown]
@@ -1137,19 +1455,33 @@ check(
     "relaxation: F_x / (mu W) constant and the stick pattern fixed",
 )
 check(rel.normal_force[-1] < 0.9 * rel.normal_force[0], "relaxation: W relaxes")
+flat21 = np.ptp(q) < 1e-5
+jit21 = max(jitter(rel), jitter(dc))
+d21 = rel.stick_ratio[-1] - dc.stick_ratio[-1]
 verdict(
     "Fig. 21a", "F_x / (mu W) constant in the relaxation case, dropping in the creep "
     "case; the relaxation case's stick ratio slightly lower",
     "F_x / (mu W) range; stick ratio at the end, relaxation vs creep",
-    np.ptp(q) < 1e-5 and rel.stick_ratio[-1] < dc.stick_ratio[-1],
+    "holds if the relaxation case's F_x / (mu W) stays constant to 1e-5, and its "
+    "stick ratio ends lower than the creep case's by more than the step-to-step "
+    "jitter of either; partly if F_x / (mu W) is constant and the stick ratios are "
+    "within the jitter",
+    "holds" if flat21 and d21 < -jit21 else (
+        "partly" if flat21 and d21 <= jit21 else "differs"),
     f"relaxation {q.min():.4f}-{q.max():.4f}, creep {f_dc[0]:.3f} -> {f_dc[-1]:.3f}; "
-    f"stick ratio {rel.stick_ratio[-1]:.3f} vs {dc.stick_ratio[-1]:.3f}",
+    f"stick ratio {rel.stick_ratio[-1]:.3f} vs {dc.stick_ratio[-1]:.3f} (difference "
+    f"{d21:+.4f}, jitter {jit21:.4f})",
     values=dict(f_range=np.ptp(q), stick_rel=rel.stick_ratio[-1],
-                stick_creep=dc.stick_ratio[-1]),
+                stick_creep=dc.stick_ratio[-1], jitter=jit21),
+    why=None if flat21 and d21 < -jit21 else (
+        "the stick ratios differ by less than the step-to-step jitter at this grid"
+        if flat21 and d21 <= jit21 else
+        "F_x / (mu W) is not constant, or the relaxation case ends with more stick"),
 )
 verdict(
     "Fig. 21b", "the relaxation case's stick pattern is time independent",
     "steps whose stick mask differs from the first",
+    "holds if no step's stick mask differs from the first in any cell",
     (rel.stick == rel.stick[0]).all(),
     f"{int((rel.stick != rel.stick[0]).any(axis=(1, 2)).sum())} of {len(rel.times)}",
     values=dict(changed=int((rel.stick != rel.stick[0]).any(axis=(1, 2)).sum())),
@@ -1180,6 +1512,8 @@ verdict(
     "Fig. 22", "the relaxation case's tractions vary insignificantly with time "
     "compared with the creep case's",
     "p_max at the end over at t = 0; largest change of p / W (the shape) over time",
+    "holds if the relaxation case's peak pressure changes by less than 20 % over the "
+    "window (insignificant), against the creep case's",
     mag_rel > 0.8,
     f"relaxation: magnitude x{mag_rel:.3f} (W {rel.normal_force[0]:.3f} -> "
     f"{rel.normal_force[-1]:.3f} N), shape change {shape_rel:.1e}; creep: magnitude "
@@ -1242,7 +1576,8 @@ WINDOW = duration(2.0, 0.5)
 NT = steps(81)
 found = {}
 for coupling in ("x", "full"):
-    for ratio in ((10,) if CI else (3, 10)):
+    # semi-coupled: Fig. 23's two ratios; fully coupled: ratio 10 (Figs. 24-27)
+    for ratio in ((10,) if CI or coupling == "full" else (3, 10)):
         for rate in RATES[:2] if coupling == "x" else RATES:
             scene = P.sliding(ratio=ratio, rate=rate, coupling=coupling, n=N, steps=NT,
                               duration=WINDOW)
@@ -1266,20 +1601,47 @@ for (c, r, v), s in found.items():
           f"{c}, ratio {r}, v {v:g}: |F| <= mu W")
 check(any(s.sliding.any() for s in found.values()), "gross sliding reached")
 semi = {k: s for k, s in found.items() if k[0] == "x"}
-early = {k: int(np.sum(np.diff(s.stick_ratio[: (slide_index(s) or len(s.times))])
-                       > 1e-12))
-         for k, s in semi.items()}
+
+
+def rises_in_cells(sol):
+    """(number of steps where the stick zone grows back before sliding, the largest
+    such rise in stick cells, and as a share of the contact): a monotone decline has
+    none; a rise of a cell or two is the flicker of the discrete stick boundary."""
+    end = slide_index(sol) or len(sol.times)
+    stick_cells = sol.stick[:end].sum(axis=(1, 2))
+    up = np.diff(stick_cells)
+    share = up / np.maximum(sol.contact[1:end].sum(axis=(1, 2)), 1)
+    return (int((up > 0).sum()), int(max(up.max(initial=0), 0)),
+            float(max(share.max(initial=0.0), 0.0)))
+
+
+early = {k: rises_in_cells(s) for k, s in semi.items()}
+# an oscillation: a rise beyond the boundary's flicker (2 cells) that shows on the
+# paper's plot of the stick ratio (0.01 of the contact)
+oscillates = [k for k, (_, c, share) in early.items() if c > 2 and share > 0.01]
+most = max(c for _, c, _ in early.values())
+most_share = max(share for _, _, share in early.values())
 verdict(
     "Fig. 23a", "oscillating stick ratios early in the semi-coupled runs",
-    "steps where the stick ratio rises before sliding (a monotone decline has none)",
-    max(early.values()) > 0,
-    ", ".join(f"ratio {r}, {v * 1e6:.0f} um/s: {n}" for (c, r, v), n in early.items()),
+    "before sliding: the steps where the number of stick cells rises, and the largest "
+    "rise in cells (a monotone decline has none)",
+    "holds if in some run the stick zone grows back in a step by more than 2 cells "
+    "(the flicker of the discrete stick boundary) and by more than 0.01 of the "
+    "contact (a rise that shows on the paper's plot of the stick ratio); differs if "
+    "no rise is both",
+    bool(oscillates),
+    ", ".join(f"ratio {r}, {v * 1e6:.0f} um/s: {n} rises, at most {c} cells "
+              f"({share:.4f} of the contact)" for (_, r, v), (n, c, share)
+              in early.items()),
     "oscillations early on",
-    values=dict(rises=max(early.values())),
-    why="with the total slip law the first step's coupled slip (the normal load alone "
-    "leaves a slip annulus) is undone by the rising delta_x as it turns the slip "
-    "direction; rises of one or two boundary cells are all we see, at every size" if
-    max(early.values()) == 0 else None,
+    values=dict(rises=max(n for n, _, _ in early.values()), largest_rise_cells=most,
+                largest_rise_share=most_share),
+    why=None if oscillates else
+    "the stick ratio declines monotonically but for the flicker of a few boundary "
+    f"cells (at most {most} cells, {most_share:.4f} of the contact): with the total "
+    "slip law the first step's coupled slip (the normal load "
+    "alone leaves a slip annulus) is undone smoothly by the rising delta_x; no "
+    "oscillation at the paper's step",
 )
 ts = {k: slide_time(s) for k, s in semi.items()}
 faster = all(ts["x", r, RATES[1]] < ts["x", r, RATES[0]] for r in {k[1] for k in semi})
@@ -1293,6 +1655,9 @@ verdict(
     "Fig. 23b", "a faster rate and the more fluid-like material slide sooner, with "
     "F_x = mu W once sliding (semi-coupled)",
     "first sliding time / tau per ratio and rate; F_x / (mu W) a step after",
+    "holds if at each ratio the faster rate slides at an earlier step, at each rate "
+    "ratio 10 slides no later than ratio 3, and F_x = mu W to 1e-4 a step after "
+    "sliding",
     faster and fluid and mu_w and np.allclose(mu_w, 1, atol=1e-4),
     ", ".join(f"ratio {r}, {v * 1e6:.0f} um/s: {t / TAU:.3f}"
               for (c, r, v), t in ts.items())
@@ -1313,68 +1678,124 @@ verdict(
 # just before sliding, `c_crit`, stays a finite part of the initial one as the time
 # step goes to zero. A continuous decline leaves a `c_crit` (and a largest one-step
 # drop) that shrinks with the step. So we refine the step (the paper's 81 points over
-# 2 tau, then 161 and 321) for full, semi ("x") and no coupling, and repeat with the
-# incremental slip law. The elastic reference: uncoupled Cattaneo-Mindlin under a
-# tangential DISPLACEMENT gives a stick AREA ratio `1 - delta_x / delta_slide`, linear
-# to zero, with no jump.
+# 2 tau, then 161 and 321) for full, semi ("x") and no coupling, at the paper's rate
+# (1e3 um/s, sliding when the modulus has relaxed) and at 4e3 um/s (sliding while it
+# relaxes), and repeat the slow rate on a second grid (`NS24`: 128^2 at paper size),
+# and the refinement with the incremental slip law at both rates and under load
+# control (a tangential load ramp to mu W under the held load, instead of the
+# displacement ramp) on a third (`NSX`: 64^2 at paper size). The elastic reference:
+# uncoupled Cattaneo-Mindlin under a tangential DISPLACEMENT gives a stick AREA ratio
+# `1 - delta_x / delta_slide`, linear to zero, with no jump; under a LOAD ramp
+# `(c / a)^2 = (1 - F_x / mu W)^(2/3)`, steep at the end but continuous.
 
 # %%
-STEP_SET = (9, 17, 33) if CI else (81, 161, 321)
+STEP_SET = (9, 17) if CI else (81, 161, 321)  # CI: two steps, the least compiling
 FAST, FAST_WINDOW = 4 * RATES[0], WINDOW / 4  # slides while the modulus relaxes
-study = {}
-for speed, rate, window in (("slow", RATES[0], WINDOW), ("fast", FAST, FAST_WINDOW)):
-    for law in ("total", "incremental"):
-        for coupling in ("full", "x", "none"):
-            if law == "incremental" and speed == "fast":
-                continue
-            for nt in STEP_SET if law == "total" else STEP_SET[:1]:
-                scene = sliding_scene(coupling, ratio=10, rate=rate, n=N, steps=nt,
-                                      duration=window, slip=law)
-                study[speed, coupling, law, nt] = solve(
-                    scene, f"Fig. 24, v {rate:g}, {coupling}, {law} law, {nt} points")
+COUPLINGS = ("full", "x", "none")
+# The added rows' grids (at CI size the main one: no new compile): the total law's
+# rows again on NS24 (the grid's effect), and the load control and the incremental
+# law's step refinement on NSX, coarser, to keep the paper-size run within 20 minutes.
+NS24 = N if CI else NS
+NSX = N if CI else GRIDS[0]
+STEPS_X = STEP_SET[:1] if CI else STEP_SET  # the refinements on NSX
+hx = STEPS_X[-1]
+SPEEDS = {"slow": (RATES[0], WINDOW), "fast": (FAST, FAST_WINDOW),
+          "load": (None, WINDOW)}
 
 
-def ending(sol):
-    """Stick ratio at 90 % of the sliding displacement over its initial value: 0.1
-    for a linear decline (Cattaneo-Mindlin under a displacement), near 0 for a gentle
-    end, large for a steep one."""
+def load_ramp_scene(coupling, n, nt, slip):
+    """Load control instead of displacement control: under the held load W, the
+    tangential LOAD rises as F_x = mu W t / T to the friction limit at the end of the
+    window T (2 tau), ratio 10."""
+    base = sliding_scene(coupling, ratio=10, normal="force", n=n, steps=nt,
+                         duration=WINDOW, slip=slip)
+    times = np.asarray(base.times)
+    return replace(base, x=jc.Force(MU * W * times / times[-1]))
+
+
+# (speed, coupling, slip law, time points, grid): the main grid's rows at the slow and
+# fast rates for the total law, the incremental law's first step at both rates; on
+# NS24 the total law's rows at the slow rate again; on NSX the incremental law at every
+# step and both rates, and the load-controlled ramp.
+runs24 = []
+for c in COUPLINGS:
+    for nt in STEP_SET:
+        runs24 += [("slow", c, "total", nt, N), ("fast", c, "total", nt, N)]
+    if c == "full" or not CI:
+        runs24.append(("slow", c, "incremental", STEP_SET[0], N))
+runs24.append(("fast", "full", "incremental", STEP_SET[0], N))
+for c in COUPLINGS:
+    runs24 += [("slow", c, "total", nt, NS24) for nt in STEP_SET]
+    runs24 += [("load", c, "total", nt, NSX) for nt in STEPS_X]
+for speed in ("slow", "fast"):
+    runs24 += [(speed, "full", "incremental", nt, NSX) for nt in STEPS_X]
+# the slow rate's 81-point runs are Fig. 23-25's
+study = {("slow", c, "total", NT, N): found[c, 10, RATES[0]] for c in ("x", "full")}
+for key in runs24:
+    speed, c, law, nt, n = key
+    if key in study:
+        continue
+    rate, window = SPEEDS[speed]
+    if speed == "load":
+        scene = load_ramp_scene(c, n, nt, law)
+    else:
+        scene = sliding_scene(c, ratio=10, rate=rate, n=n, steps=nt, duration=window,
+                              slip=law)
+    study[key] = solve(scene, f"Fig. 24, {speed}, {c}, {law} law, {nt} points, {n}^2")
+
+
+def ending(sol, by="displacement"):
+    """Stick ratio at 90 % of the way to sliding over its initial value, the way
+    measured by the tangential displacement (or, under load control, the tangential
+    force): 0.1 for a linear decline (Cattaneo-Mindlin under a displacement), near 0
+    for a gentle end, large for a steep one; nan without sliding."""
     k = slide_index(sol)
-    dx = sol.tangential_displacement[: k + 1, 0]
-    return float(np.interp(0.9 * dx[-1], dx, sol.stick_ratio[: k + 1])
+    if k is None:
+        return float("nan")
+    way = (sol.tangential_displacement if by == "displacement"
+           else sol.tangential_force)[: k + 1, 0]
+    return float(np.interp(0.9 * way[-1], way, sol.stick_ratio[: k + 1])
                  / sol.stick_ratio[0])
 
 
-fig, ax = plt.subplots(1, 3, figsize=(15, 3.8))
-for (speed, c, law, nt), s in study.items():
-    if nt == STEP_SET[0] and speed == "slow":
-        ax[0].plot(s.tangential_displacement[:, 0] * 1e6, s.stick_ratio,
-                   "-" if law == "total" else ":", label=f"{c}, {law}")
-    if law == "total" and c == "full":
-        ax[1].plot(s.tangential_displacement[:, 0] * 1e6, s.stick_ratio,
-                   ".-" if speed == "slow" else "x-", ms=3,
+fig, ax = plt.subplots(1, 4, figsize=(20, 3.8))
+for (speed, c, law, nt, n), s in study.items():
+    dx_um = s.tangential_displacement[:, 0] * 1e6
+    if nt == STEP_SET[0] and speed == "slow" and n == N:
+        ax[0].plot(dx_um, s.stick_ratio, "-" if law == "total" else ":",
+                   label=f"{c}, {law}")
+    if law == "total" and c == "full" and n == N and speed != "load":
+        ax[1].plot(dx_um, s.stick_ratio, ".-" if speed == "slow" else "x-", ms=3,
                    label=f"{speed}, {nt} points")
-    if law == "total" and nt == STEP_SET[-1] and speed == "fast":
-        ax[2].plot(s.tangential_displacement[:, 0] * 1e6, s.stick_ratio,
-                   label=f"{c}, fast")
+    if nt == STEP_SET[-1] and speed == "fast" and (law == "total" or n != N):
+        ax[2].plot(dx_um, s.stick_ratio, label=f"{c}, {law}, {n}^2")
+    if speed == "load" and nt == hx:
+        ax[3].plot(s.tangential_force[:, 0] / (MU * W), s.stick_ratio, label=c)
 ax[0].set(xlabel="delta_x [um]", ylabel="stick ratio",
           title=f"Fig. 24a (ratio 10, {RATES[0] * 1e6:.0f} um/s)")
 ax[1].set(xlabel="delta_x [um]", ylabel="stick ratio",
           title="Fig. 24b: time steps (full)")
 ax[2].set(xlabel="delta_x [um]", title=f"{FAST * 1e6:.0f} um/s: sliding while relaxing")
+ax[3].set(xlabel="F_x / mu W", title=f"load control, {hx} points, {NSX}^2")
 for a in ax:
     a.legend(fontsize=6)
 show(fig, "fig24_transition")
 
 table24 = {}
-for (speed, c, law, nt), s in study.items():
+for key, s in study.items():
+    speed, c, law, nt, n = key
     c0, crit, drop = transition(s)
-    table24[speed, c, law, nt] = (c0, crit, drop, slide_time(s) / TAU, ending(s))
-    print(f"  {speed} {c:4s} {law:11s} {nt:3d} points: c(0) {c0:.3f}, c before sliding "
-          f"{crit:.4f} ({crit / c0:.1%} of c(0)), largest drop {drop:.4f} "
-          f"({drop / c0:.1%}), c at 0.9 delta_slide {ending(s):.3f} c(0), slides at "
-          f"{slide_time(s) / TAU:.3f} tau")
-full0 = study["slow", "full", "total", STEP_SET[0]]
-semi0 = study["slow", "x", "total", STEP_SET[0]]
+    end = ending(s, "force" if speed == "load" else "displacement")
+    k = slide_index(s)
+    f_slide = (s.tangential_force[k, 0] / (MU * s.normal_force[k]) if k is not None
+               else float("nan"))
+    table24[key] = (c0, crit, drop, slide_time(s) / TAU, end, f_slide)
+    print(f"  {speed} {c:4s} {law:11s} {nt:3d} points {n}^2: c(0) {c0:.3f}, c before "
+          f"sliding {crit:.4f} ({crit / c0:.1%} of c(0)), largest drop {drop:.4f} "
+          f"({drop / c0:.1%}), c at 90 % of the way {end:.3f} c(0), slides at "
+          f"{slide_time(s) / TAU:.3f} tau, F_x / mu W {f_slide:.3f}")
+full0 = study["slow", "full", "total", STEP_SET[0], N]
+semi0 = study["slow", "x", "total", STEP_SET[0], N]
 kf, ks = slide_index(full0), slide_index(semi0)
 f_full = full0.tangential_force[kf, 0] / (MU * full0.normal_force[kf])
 f_semi = semi0.tangential_force[ks, 0] / (MU * semi0.normal_force[ks])
@@ -1383,7 +1804,9 @@ verdict(
     "tangential load than semi-coupled",
     "first sliding time / tau and F_x / (mu W) there, full vs semi "
     f"({STEP_SET[0]} points)",
-    slide_time(full0) <= slide_time(semi0) and f_full < f_semi,
+    "holds if full coupling slides no later (in steps) and at a tangential load lower "
+    "by more than 0.01 mu W",
+    slide_time(full0) <= slide_time(semi0) and f_full < f_semi - 0.01,
     f"{slide_time(full0) / TAU:.3f} vs {slide_time(semi0) / TAU:.3f} tau; F_x / mu W "
     f"{f_full:.3f} vs {f_semi:.3f}",
     values=dict(t_full=slide_time(full0) / TAU, t_semi=slide_time(semi0) / TAU,
@@ -1391,74 +1814,106 @@ verdict(
 )
 T = table24
 lo, hi = STEP_SET[0], STEP_SET[-1]
-crit_rel = max(T[sp, "full", "total", hi][1] / T[sp, "full", "total", hi][0]
-               for sp in ("slow", "fast"))
+refined = {}  # the step counts of each fully coupled (speed, law, grid)
+for speed, c, law, nt, n in T:
+    if c == "full":
+        refined.setdefault((speed, law, n), []).append(nt)
+# the finest step of each refinement (a run at one step only refines nothing)
+finest_full = {(sp, "full", law, max(nts), n): T[sp, "full", law, max(nts), n][1]
+               / T[sp, "full", law, max(nts), n][0]
+               for (sp, law, n), nts in refined.items() if len(nts) > 1}
+crit_rel = max(finest_full.values())
 abrupt = crit_rel > 0.25
-shrink = {sp: T[sp, "full", "total", hi][2] / T[sp, "full", "total", lo][2]
+shrink = {sp: T[sp, "full", "total", hi, N][2] / T[sp, "full", "total", lo, N][2]
           for sp in ("slow", "fast")}
+shrink_incr = {sp: T[sp, "full", "incremental", hx, NSX][2]
+               / T[sp, "full", "incremental", lo, NSX][2] for sp in ("slow", "fast")}
 verdict(
     "Fig. 24a (abrupt)", "under full coupling the stick ratio jumps from a relatively "
     "high value to zero (a discontinuity: the step does not smooth it)",
-    f"stick ratio just before sliding over c(0), full coupling, total law, at {hi} "
-    f"points, at {RATES[0] * 1e6:.0f} and {FAST * 1e6:.0f} um/s (the larger); the "
-    f"largest one-step drop, {hi} over {lo} points",
+    "fully coupled, at the finest step of each refinement: the stick ratio just "
+    f"before sliding over c(0), the largest over the slow ({RATES[0] * 1e6:.0f} "
+    f"um/s) and fast ({FAST * 1e6:.0f} um/s) rates, both slip laws, load control and "
+    f"the grids {', '.join(f'{n}^2' for n in sorted({NSX, NS24, N}))}; the largest "
+    f"one-step drop, {hi} over {lo} points",
+    "holds if in some fully coupled refinement the stick ratio just before sliding "
+    "stays above 25 % of c(0) at the finest step (a jump that refinement does not "
+    "remove); differs if it is below that in every one, the largest one-step drop "
+    "shrinking with the step",
     abrupt,
-    f"c before sliding / c(0) at {hi} points: "
-    f"{T['slow', 'full', 'total', hi][1] / T['slow', 'full', 'total', hi][0]:.1%} "
-    "(slow), "
-    f"{T['fast', 'full', 'total', hi][1] / T['fast', 'full', 'total', hi][0]:.1%} "
-    "(fast); "
-    f"largest drop x{shrink['slow']:.2f} (slow), x{shrink['fast']:.2f} (fast) from "
-    f"{lo} to {hi} points",
+    f"c before sliding / c(0) at the finest step: at most {crit_rel:.1%} ("
+    + ", ".join(f"{sp} {law} {n}^2 {nt} points {v:.1%}"
+                for (sp, c, law, nt, n), v in finest_full.items())
+    + f"); largest drop x{shrink['slow']:.2f} (slow), x{shrink['fast']:.2f} (fast) "
+    f"from {lo} to {hi} points (total law, {N}^2); incremental law "
+    f"x{shrink_incr['slow']:.2f} (slow), x{shrink_incr['fast']:.2f} (fast) "
+    f"({NSX}^2)",
     "a jump from a relatively high value to zero, unchanged by smaller steps",
     values=dict(crit_over_c0=crit_rel, shrink_slow=shrink["slow"],
-                shrink_fast=shrink["fast"],
-                drop_coarse=(T["slow", "full", "total", lo][2]
-                             / T["slow", "full", "total", lo][0]),
-                drop_fine=(T["slow", "full", "total", hi][2]
-                           / T["slow", "full", "total", hi][0]),
-                ending_slow=T["slow", "full", "total", hi][4],
-                ending_fast=T["fast", "full", "total", hi][4],
-                ending_fast_semi=T["fast", "x", "total", hi][4],
-                ending_fast_none=T["fast", "none", "total", hi][4],
-                crit_incremental=T["slow", "full", "incremental", lo][1]),
+                crit_fine_slow=(T["slow", "full", "total", hi, N][1]
+                                / T["slow", "full", "total", hi, N][0]),
+                crit_fine_fast=(T["fast", "full", "total", hi, N][1]
+                                / T["fast", "full", "total", hi, N][0]),
+                shrink_fast=shrink["fast"], shrink_incremental_slow=shrink_incr["slow"],
+                shrink_incremental_fast=shrink_incr["fast"],
+                drop_coarse=(T["slow", "full", "total", lo, N][2]
+                             / T["slow", "full", "total", lo, N][0]),
+                drop_fine=(T["slow", "full", "total", hi, N][2]
+                           / T["slow", "full", "total", hi, N][0]),
+                ending_slow=T["slow", "full", "total", hi, N][4],
+                ending_fast=T["fast", "full", "total", hi, N][4],
+                ending_fast_semi=T["fast", "x", "total", hi, N][4],
+                ending_fast_none=T["fast", "none", "total", hi, N][4],
+                ending_load_full=T["load", "full", "total", hx, NSX][4],
+                ending_load_none=T["load", "none", "total", hx, NSX][4],
+                crit_incremental=T["slow", "full", "incremental", lo, N][1]),
     why="no jump in any computation: as the step is refined the last stick ratio "
     "before sliding goes to zero ("
-    + ", ".join(f"{T['slow', 'full', 'total', nt][1]:.4f}" for nt in STEP_SET)
+    + ", ".join(f"{T['slow', 'full', 'total', nt, N][1]:.4f}" for nt in STEP_SET)
     + " slow; "
-    + ", ".join(f"{T['fast', 'full', 'total', nt][1]:.4f}" for nt in STEP_SET)
-    + f" fast, at {', '.join(map(str, STEP_SET))} points) and the largest one-step "
-    f"drop shrinks with the step (x{shrink['slow']:.2f} and x{shrink['fast']:.2f} "
-    f"for a {(hi - 1) // (lo - 1)}x finer step): the stick ratio is continuous in "
-    "time, for the incremental slip law too (last value "
-    f"{T['slow', 'full', 'incremental', lo][1]:.4f}). What IS there: when gross "
-    f"sliding comes while the modulus relaxes ({FAST * 1e6:.0f} um/s, sliding at "
-    f"{T['fast', 'full', 'total', hi][3]:.2f} tau; the load relaxes with it under the "
-    "held approach), the coupled stick ratio stays high until late and falls over the "
-    f"last tenth of the way: at 90 % of the sliding displacement it is still "
-    f"{T['fast', 'full', 'total', hi][4]:.2f} c(0) fully coupled ("
-    f"{T['fast', 'x', 'total', hi][4]:.2f} semi, "
-    f"{T['fast', 'none', 'total', hi][4]:.2f} "
+    + ", ".join(f"{T['fast', 'full', 'total', nt, N][1]:.4f}" for nt in STEP_SET)
+    + f" fast, at {', '.join(map(str, STEP_SET))} points, {N}^2; with the "
+    "incremental law "
+    + ", ".join(f"{T['fast', 'full', 'incremental', nt, NSX][1]:.4f}"
+                for nt in STEPS_X)
+    + f" fast, {NSX}^2) and the largest one-step drop shrinks with the step "
+    f"(x{shrink['slow']:.2f} and x{shrink['fast']:.2f} for a "
+    f"{(hi - 1) // (lo - 1)}x finer step): the stick ratio is continuous in time, for "
+    "either slip law. What IS there: when gross sliding comes while the modulus "
+    f"relaxes ({FAST * 1e6:.0f} um/s, sliding at "
+    f"{T['fast', 'full', 'total', hi, N][3]:.2f} tau; the load relaxes with it under "
+    "the held approach), the coupled stick ratio stays high until late and falls over "
+    "the last tenth of the way: at 90 % of the sliding displacement it is still "
+    f"{T['fast', 'full', 'total', hi, N][4]:.2f} c(0) fully coupled ("
+    f"{T['fast', 'x', 'total', hi, N][4]:.2f} semi, "
+    f"{T['fast', 'none', 'total', hi, N][4]:.2f} "
     f"uncoupled; a linear decline gives 0.10), against "
-    f"{T['slow', 'full', 'total', hi][4]:.2f} at {RATES[0] * 1e6:.0f} um/s, sliding at "
-    f"{T['slow', 'full', 'total', hi][3]:.2f} tau when the material is steady. With a "
-    "coarse step that steep end is one or two steps, and reads as a jump. So the "
-    "abruptness is a steep but continuous end of sliding during relaxation, as sharp "
-    "semi-coupled as fully coupled; not a discontinuity, and not specific to full "
-    "coupling" if not abrupt else None,
+    f"{T['slow', 'full', 'total', hi, N][4]:.2f} at {RATES[0] * 1e6:.0f} um/s, "
+    f"sliding at {T['slow', 'full', 'total', hi, N][3]:.2f} tau when the material is "
+    "steady. With a coarse step that steep end is one or two steps, and reads as a "
+    "jump. Under load control (a tangential load ramp to mu W under the held load) the "
+    f"end is steep for every coupling ({T['load', 'full', 'total', hx, NSX][4]:.2f} "
+    f"full, {T['load', 'x', 'total', hx, NSX][4]:.2f} semi, "
+    f"{T['load', 'none', 'total', hx, NSX][4]:.2f} uncoupled at 90 % of the sliding "
+    "load; Cattaneo-Mindlin: 0.22) and the last stick ratio before sliding shrinks "
+    "with the step too (full "
+    + ", ".join(f"{T['load', 'full', 'total', nt, NSX][1]:.4f}" for nt in STEPS_X)
+    + "). So the abruptness is a steep but continuous end, not a discontinuity, and "
+    "not specific to full coupling" if not abrupt else None,
 )
-c24b = [T["slow", "full", "total", nt][3] for nt in STEP_SET]
+c24b = [T["slow", "full", "total", nt, N][3] for nt in STEP_SET]
+spread24b = (max(c24b) - min(c24b)) / min(c24b)
 verdict(
     "Fig. 24b", "smaller time steps change the partial slip solution insignificantly",
     f"first sliding time / tau, full coupling, {', '.join(map(str, STEP_SET))} points",
-    (max(c24b) - min(c24b)) / min(c24b) < 0.15,
+    "holds if the first sliding time moves by less than 15 % across the three steps",
+    spread24b < 0.15,
     ", ".join(f"{v:.3f}" for v in c24b)
     + f" (one step of the coarsest is {WINDOW / (STEP_SET[0] - 1):.3f} tau)",
-    values=dict(spread=(max(c24b) - min(c24b)) / min(c24b)),
-    why="the sliding time moves by more than one coarse step as the step is refined: "
-    "at this grid the last cells of the stick zone are few, and whether they go at one "
-    "step or the next shifts the first sliding step"
-    if (max(c24b) - min(c24b)) / min(c24b) >= 0.15 else None,
+    values=dict(spread=spread24b),
+    why="the sliding time moves by more than 15 % as the step is refined: at this grid "
+    "the last cells of the stick zone are few, and whether they go at one step or the "
+    "next shifts the first sliding step" if spread24b >= 0.15 else None,
 )
 
 # %% [markdown]
@@ -1493,16 +1948,23 @@ ax[1].set(xlabel="t / tau", ylabel="R(t) [MPa] (true shear modulus)", title="Fig
 show(fig, "fig25_critical")
 order = sorted(crit25.values())
 vals = [c for _, c, _ in order]
-rises_first = len(vals) >= 3 and int(np.argmax(vals)) not in (0, len(vals) - 1)
+step_change25 = max(abs(crit25[r][1] - v[0]) for r, v in fine25.items())
+peak25 = int(np.argmax(vals))
+rises_first = (len(vals) >= 3 and peak25 not in (0, len(vals) - 1)
+               and vals[peak25] - max(vals[0], vals[-1]) > step_change25)
 verdict(
     "Fig. 25a", "the critical stick ratio first increases with the sliding time, then "
     "decreases",
     f"stick ratio just before sliding against the sliding time ({NT} points over "
-    f"{WINDOW:g} tau)",
+    f"{WINDOW:g} tau); its change at {2 * NT - 1} points",
+    "holds if the critical value peaks at an interior sliding time, above both ends "
+    "by more than it changes when the time points are doubled",
     rises_first,
-    ", ".join(f"{t:.3f} tau: {c:.4f}" for t, c, _ in order),
+    ", ".join(f"{t:.3f} tau: {c:.4f}" for t, c, _ in order)
+    + f" (change at {2 * NT - 1} points: up to {step_change25:.4f})",
     "a rise, then a fall",
-    values={f"crit_v{r * 1e6:.0f}": v[1] for r, v in crit25.items()},
+    values={f"crit_v{r * 1e6:.0f}": v[1] for r, v in crit25.items()}
+    | dict(step_change=step_change25),
     why="the critical value is a sample of a continuous curve at the last step before "
     "sliding: it lies between 0 and the last step's drop, which grows with the step "
     "v dt, and where in that range it falls depends on where the step lands. So it "
@@ -1511,29 +1973,39 @@ verdict(
                 for r, v in fine25.items())
     + ") and goes to zero with the step (Fig. 24). What the rate does change is the "
     "steepness of the end (the stick ratio at 90 % of the sliding displacement over "
-    f"c(0), resolved in Fig. 24: {T['slow', 'full', 'total', STEP_SET[-1]][4]:.2f} at "
-    f"{RATES[0] * 1e6:.0f} um/s, {T['fast', 'full', 'total', STEP_SET[-1]][4]:.2f} at "
+    f"c(0), resolved in Fig. 24: {T['slow', 'full', 'total', hi, N][4]:.2f} at "
+    f"{RATES[0] * 1e6:.0f} um/s, {T['fast', 'full', 'total', hi, N][4]:.2f} at "
     f"{FAST * 1e6:.0f} um/s): sliding sooner, during the relaxation, ends steeper"
     if not rises_first else None,
 )
-e_slow = T["slow", "full", "total", STEP_SET[-1]][4]
-e_fast = T["fast", "full", "total", STEP_SET[-1]][4]
+e_slow = T["slow", "full", "total", hi, N][4]
+e_fast = T["fast", "full", "total", hi, N][4]
+e_step = max(abs(T[sp, "full", "total", hi, N][4]
+                 - T[sp, "full", "total", STEP_SET[-2], N][4])
+             for sp in ("slow", "fast"))
 verdict(
     "Fig. 25a (slow rate)", "at v = 1e3 um/s, sliding when the material is steady, "
     "the transition is less abrupt",
     "stick ratio at 90 % of the sliding displacement over c(0), full coupling, "
     f"{STEP_SET[-1]} points: {RATES[0] * 1e6:.0f} vs {FAST * 1e6:.0f} um/s",
-    e_slow < e_fast,
-    f"{e_slow:.3f} (sliding at {T['slow', 'full', 'total', STEP_SET[-1]][3]:.2f} tau) "
-    "vs "
-    f"{e_fast:.3f} (at {T['fast', 'full', 'total', STEP_SET[-1]][3]:.2f} tau)",
-    values=dict(ending_slow=e_slow, ending_fast=e_fast),
+    "holds if it is lower at the slow rate by more than either changes from "
+    f"{STEP_SET[-2]} to {STEP_SET[-1]} points",
+    e_fast - e_slow > e_step,
+    f"{e_slow:.3f} (sliding at {T['slow', 'full', 'total', hi, N][3]:.2f} tau) vs "
+    f"{e_fast:.3f} (at {T['fast', 'full', 'total', hi, N][3]:.2f} tau); "
+    f"step change up to {e_step:.3f}",
+    values=dict(ending_slow=e_slow, ending_fast=e_fast, step_change=e_step),
+    why=None if e_fast - e_slow > e_step else
+    "the difference between the rates is within what doubling the time points "
+    "changes at this grid" if e_fast > e_slow else
+    "the end is as steep or steeper at the slow rate",
 )
 g0, ginf = float(gt[0]), float(P.zener_material(10).mu_0)
 t90 = float(tt[np.argmax(gt - ginf < 0.1 * (g0 - ginf))] / TAU)
 verdict(
     "Fig. 25b", "the relaxation modulus drops steeply, then levels off",
     "R(0) / R(inf) and the time to 90 % of the drop",
+    "holds if R drops by more than x5 and 90 % of the drop comes within 0.5 tau",
     g0 / ginf > 5 and t90 < 0.5,
     f"R(0) / R(inf) = {g0 / ginf:.1f}, 90 % of the drop by {t90:.2f} tau (relaxation "
     f"time tau mu_0 / mu_inf = {0.1:.2f} tau)",
@@ -1552,25 +2024,50 @@ creep = solve(
     P.sliding(ratio=10, rate=RATES[0], normal="force", n=N, steps=NT, duration=WINDOW),
     "Figs. 26-27, normal load",
 )
+# The held load needs a far larger delta_x to slide (W stays 0.15 N while the
+# relaxation case's W falls tenfold; the relaxed Cattaneo-Mindlin estimate, 3 mu W (2 -
+# nu) / (16 mu_0 a_inf), is ~60 um, 6 tau at 1e3 um/s): the creep case again over a
+# window long enough, at twice Fig. 26's step.
+CREEP_WINDOW = 4 * WINDOW
+creep_long = solve(  # at CI size the program of Fig. 20b's 17-point runs
+    P.sliding(ratio=10, rate=RATES[0], normal="force", n=N, steps=2 * NT - 1,
+              duration=CREEP_WINDOW),
+    f"Fig. 26, normal load, {CREEP_WINDOW:g} tau",
+)
 relax = found["full", 10, RATES[0]]
-fig, ax = plt.subplots(figsize=(6, 3.8))
-ax.plot(relax.times / TAU, relax.stick_ratio, ".-",
-        label="held displacement (relaxation)")
-ax.plot(creep.times / TAU, creep.stick_ratio, ".-", label="held load (creep)")
-ax.set(xlabel="t / tau", ylabel="stick ratio", title="Fig. 26")
-ax.legend(fontsize=7)
+fig, ax = plt.subplots(1, 2, figsize=(12, 3.8))
+for a in ax:
+    a.plot(relax.times / TAU, relax.stick_ratio, ".-",
+           label="held displacement (relaxation)")
+    a.plot(creep_long.times / TAU, creep_long.stick_ratio, ".-",
+           label="held load (creep)")
+    a.set(xlabel="t / tau", ylabel="stick ratio")
+ax[0].set(xlim=(0, WINDOW), title="Fig. 26")
+ax[1].set(title=f"Fig. 26 over {CREEP_WINDOW:g} tau")
+ax[0].legend(fontsize=7)
 show(fig, "fig26_creep_vs_relaxation")
-t_relax, t_creep = slide_time(relax), slide_time(creep)
+t_relax, t_creep = slide_time(relax), slide_time(creep_long)
+dt26 = float(creep_long.times[1] - creep_long.times[0])
 verdict(
     "Fig. 26", "the held displacement (relaxation) slides sooner than the held load "
-    "(creep)", "first sliding time / tau",
-    t_relax < t_creep or (np.isfinite(t_relax) and not np.isfinite(t_creep)),
+    "(creep)",
+    f"first sliding time / tau, the creep case run over {CREEP_WINDOW:g} tau",
+    "holds if both slide and the relaxation case slides earlier by more than two of "
+    "the creep run's steps; partly if only the relaxation case slides within the "
+    "window (the order is then a bound, not a measurement)",
+    "holds" if t_creep - t_relax > 2 * dt26 else (
+        "partly" if np.isfinite(t_relax) and not np.isfinite(t_creep) else "differs"),
     f"relaxation {t_relax / TAU:.3f} tau, creep "
     + (f"{t_creep / TAU:.3f} tau" if np.isfinite(t_creep)
-       else f"not within {WINDOW:g} tau")
+       else f"not within {CREEP_WINDOW:g} tau")
     + f" (W there: {relax.normal_force[slide_index(relax) or -1]:.4f} vs "
-    f"{creep.normal_force[-1]:.3f} N)",
-    values=dict(t_relax=t_relax / TAU),
+    f"{creep_long.normal_force[-1]:.3f} N; delta_x "
+    f"{relax.tangential_displacement[slide_index(relax) or -1, 0] * 1e6:.1f} vs "
+    f"{creep_long.tangential_displacement[slide_index(creep_long) or -1, 0] * 1e6:.1f}"
+    " um)",
+    values=dict(t_relax=t_relax / TAU, t_creep=t_creep / TAU),
+    why=None if t_creep - t_relax > 2 * dt26 else
+    f"the creep case does not slide within {CREEP_WINDOW:g} tau",
 )
 fig, axes = plt.subplots(2, 4, figsize=(12, 6))
 kmax = min(slide_index(relax) or NT - 1, NT - 1)
@@ -1592,6 +2089,7 @@ verdict(
     "displacement",
     "stick ratio and stick centroid x / a0 at four times up to the relaxation case's "
     "sliding",
+    "holds if the two stick ratios differ by more than 0.02 at one of the four times",
     differ > 0.02,
     "creep " + ", ".join(f"{c:.3f}" for c in paths["creep"]) + " (x "
     + ", ".join(f"{c:+.2f}" for c in cen27["creep"]) + "); relaxation "
@@ -1663,6 +2161,8 @@ verdict(
     "subsurface stress towards the contact edge, as far as the pressure is skewed",
     "position (r / a, z / a) of the von Mises maximum under the pressure alone: ratio "
     "3 and 10 coupled (Figs. 13-15) and the most skewed ratio-10 pressure of Fig. 8",
+    "holds if the maximum under a skewed pressure (ratio 10 coupled, or Fig. 8's most "
+    "skewed) lies farther from the axis than ratio 3's by more than 0.1 a",
     r8[0] > r3[0] + 0.1 or r10[0] > r3[0] + 0.1,
     f"ratio 3: r = {r3[0]:.2f} a, z = {r3[1]:.2f} a; ratio 10 coupled (edge rise "
     f"{rise13[10]:.2f} p_max, the centre the maximum): r = {r10[0]:.2f} a, z = "
@@ -1686,14 +2186,17 @@ verdict(
 print(f"\n{'study':24s} {'verdict':8s} ours")
 for v in VERDICTS:
     print(f"{v['study']:24s} {v['verdict']:8s} {v['ours']}")
-n_hold = sum(v["verdict"] == "holds" for v in VERDICTS)
-print(f"\n{n_hold} hold, {len(VERDICTS) - n_hold} differ, at {N}x{N} ({SIZE}); "
+counts = {value: sum(v["verdict"] == value for v in VERDICTS)
+          for value in VERDICT_VALUES}
+print("\n" + ", ".join(f"{n} {value}" for value, n in counts.items())
+      + f" of {len(VERDICTS)}, at {N}x{N} ({SIZE}); "
       f"{time.perf_counter() - START:.0f} s")
 unexplained = [v["study"] for v in VERDICTS
-               if v["verdict"] == "differs" and not v["why"]]
-print(f"differences without a written cause at this size: {unexplained or 'none'}")
+               if v["verdict"] != "holds" and not v["why"]]
+print(f"verdicts short of holds without a written cause at this size: "
+      f"{unexplained or 'none'}")
 if not CI:  # at CI size (16^2, 9 points) the numbers are a smoke test
-    check(not unexplained, "every difference has its cause written beside it")
+    check(not unexplained, "every partly and differs has its cause written beside it")
 if VERDICT_FILE:
     write_verdicts()
     print(f"verdicts written to {VERDICT_FILE}")

@@ -2,9 +2,7 @@
 layout of `benchmarks/results/SCHEMA.md` and the name of its machine and variant, every
 results file the benchmarks README (and the docs and tests) cite exists, and the
 README's headline table is the one `benchmarks/headline.py` generates from them.
-
-The paper reproduction's files (`results/paper*`) keep the layout of their own page
-(`benchmarks/paper_reproduction.md`) and are not checked here."""
+"""
 
 import itertools
 import re
@@ -22,11 +20,7 @@ import _common  # noqa: E402
 import headline  # noqa: E402
 
 
-def _ours(path: Path) -> bool:
-    return not path.relative_to(RESULTS).parts[0].startswith("paper")
-
-
-FILES = sorted(p for p in RESULTS.rglob("*.json") if _ours(p))
+FILES = sorted(RESULTS.rglob("*.json"))
 IDS = [str(p.relative_to(RESULTS)) for p in FILES]
 
 
@@ -55,7 +49,7 @@ def test_results_file_follows_the_schema(path):
 
 
 def test_no_results_file_outside_a_benchmark_folder():
-    flat = [p.name for p in RESULTS.glob("*.json") if _ours(p)]
+    flat = [p.name for p in RESULTS.glob("*.json")]
     assert flat == []
 
 
@@ -90,8 +84,8 @@ def test_every_results_path_the_docs_and_tests_cite_exists():
                                      *(ROOT / "tests").glob("*.py")]]
     paths = {m for t in texts for m in re.findall(
         r"benchmarks/results/[A-Za-z0-9_./{},<>-]*[A-Za-z0-9_>}]", t)}
-    missing = sorted(p for p in paths if "/paper" not in p  # the paper's own test
-                     and not any(_exists(c) for c in _cited(f"`{p}`")))
+    missing = sorted(p for p in paths
+                     if not any(_exists(c) for c in _cited(f"`{p}`")))
     assert missing == []
 
 

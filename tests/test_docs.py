@@ -36,7 +36,7 @@ def test_docs_build_without_warnings(tmp_path):
     shutil.copytree(ROOT / "docs", src / "docs", ignore=shutil.ignore_patterns(
         "_build", "apidocs"))
     for path in ("jaxcontact", "benchmarks/README.md",
-                 "benchmarks/results/paper_figures"):
+                 "benchmarks/results/paper/figures"):
         target = src / path
         target.parent.mkdir(parents=True, exist_ok=True)
         copy = shutil.copytree if (ROOT / path).is_dir() else shutil.copy
