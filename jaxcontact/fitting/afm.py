@@ -30,7 +30,7 @@ import numpy as np
 
 from .data import IndentationData
 from .fit import fit_prony
-from .options import FitOptions
+from .options import SOLVERS, FitOptions
 from .quality import (
     assess,
     at_bounds,
@@ -128,7 +128,7 @@ class AFMFitSettings:
             raise ValueError(f"start must be 'lee-radok' or 'data', got {self.start!r}")
         if not (isinstance(self.steps, int) and self.steps >= 1):
             raise ValueError(f"steps must be an integer >= 1, got {self.steps!r}")
-        if self.solver not in ("auto", "rings", "grid"):
+        if self.solver not in SOLVERS:
             raise ValueError(f"solver must be 'auto', 'rings' or 'grid', got "
                              f"{self.solver!r}")
         if not (isinstance(self.rings, int) and not isinstance(self.rings, bool)

@@ -12,6 +12,10 @@ import numpy as np
 from .._validate import check_int
 
 
+# The contact models a fit can run on (`solver`): see `FitOptions`.
+SOLVERS = ("auto", "rings", "grid")
+
+
 OPTIMISERS = ("auto", "lm", "lbfgs")
 
 
@@ -115,7 +119,7 @@ class FitOptions:
             raise ValueError(f"gtol must be None or a number >= 0, got {gtol!r}")
         put("precondition", _check_bool("precondition", self.precondition))
         put("check_grid", _check_bool("check_grid", self.check_grid))
-        if self.solver not in ("auto", "rings", "grid"):
+        if self.solver not in SOLVERS:
             raise ValueError(f"solver must be 'auto', 'rings' or 'grid', got "
                              f"{self.solver!r}")
         put("rings", check_int("rings", self.rings, 4))

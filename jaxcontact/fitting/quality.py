@@ -52,15 +52,14 @@ def model_curve(material, template, *, times, force, depth, kind, refine=1,
     import jax.numpy as jnp
 
     if rings is not None:
-        from .._ring_operator import RingOperator
         from .._solve_rings import solve_axisymmetric
+        from .rings_model import ring_context
 
         normal = (Force(jnp.asarray(force)) if kind == "depth"
                   else Displacement(jnp.asarray(depth)))
         scene = eqx.tree_at(lambda s: (s.material, s.times, s.normal), template,
                             (material, jnp.asarray(times), normal))
-        operator = RingOperator.uniform(radius, refine * rings,
-                                        dtype=template.grid.size.dtype)
+        _, operator = ring_context(template, refine * rings, radius)
         sol = solve_axisymmetric(scene, operator=operator, scheme="linear",
                                  throw=False)
         return np.asarray(sol.approach if kind == "depth" else sol.normal_force)

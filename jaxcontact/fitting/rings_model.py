@@ -24,6 +24,7 @@ from .._ring_operator import RingOperator
 from .._scene import Scene, normal_targets
 from .._solve_rings import axisymmetric_support, solve_axisymmetric
 from .._solver.rings import RingPolonskyKeer
+from .options import SOLVERS
 
 
 # Rings of a fit by default: 64 rings of equal width put 30-40 in the largest contact,
@@ -35,8 +36,6 @@ DEFAULT_FIT_RINGS = 64
 # indentation: the elastic contact radius of a sphere is 1 / sqrt(2) of it, a cone's
 # 2 / pi, so 1.25 leaves room for a trial material that indents deeper.
 RING_MARGIN = 1.25
-
-SOLVERS = ("auto", "rings", "grid")
 
 # radii evaluated at once by each narrowing of `intersection_radius`'s bracket
 _SAMPLES = 1025
