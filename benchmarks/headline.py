@@ -1,9 +1,11 @@
-"""The headline table of `benchmarks/README.md`, generated from `results/`: one row a
-number, each read from the results file named beside it, none typed by hand.
+"""The headline tables of `benchmarks/README.md` and of the project's `README.md`,
+generated from `results/`: one row a number, each read from the results file named
+beside it, none typed by hand. The project README's table names the script that made
+each number instead of the file.
 
     python benchmarks/headline.py           # print the table
-    python benchmarks/headline.py --write   # write it into the README, between markers
-    python benchmarks/headline.py --check   # exit 1 if the README's table is stale
+    python benchmarks/headline.py --write   # write both READMEs' tables
+    python benchmarks/headline.py --check   # exit 1 if either README's table is stale
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from _common import HERE, RESULTS, load_results  # noqa: E402
 
 
 README = HERE / "README.md"
+PROJECT_README = HERE.parent / "README.md"
 BEGIN = "<!-- headline.py: begin -->"
 END = "<!-- headline.py: end -->"
 MACHINES = {"intel_xeon": "Intel Xeon", "amd_epyc": "AMD EPYC", "h200": "one H200",
@@ -102,8 +105,8 @@ def gradients(r):
 
 def gradient_matrix(r):
     c = r["summary"]["counts"]
-    return (f"{c['right']} right, {c['kink']} kink, {c['refused']} refused, "
-            f"{c['wrong']} wrong")
+    return (f"{len(r['rows'])} scenes: {c['right']} right, {c['kink']} on a kink, "
+            f"{c['refused']} refused naming the cause, {c['wrong']} wrong")
 
 
 def fit(r):
@@ -151,10 +154,10 @@ ENTRIES = [
     ("joint_robustness/unknown.json", "strong coupling, small stick zones", joint),
     ("gradients/amd_epyc_128.json", "gradient of 50 steps, 128^2, 8 scenes",
      gradients),
-    ("gradient_matrix/intel_xeon.json", "gradients across 133 scenes",
+    ("gradient_matrix/intel_xeon.json", "gradients against central differences, "
+     "grid solver", gradient_matrix),
+    ("gradient_matrix/intel_xeon_rings.json", "the same, ring solver",
      gradient_matrix),
-    ("gradient_matrix/intel_xeon_rings.json", "ring-solver gradients across 42 "
-     "scenes", gradient_matrix),
     ("fit/intel_xeon_lm.json", "Prony fit of the PMMA step, 64^2 x 40, LM", fit),
     ("fit_cli_real_files/intel_xeon.json", "`jaxcontact fit` on the creep file",
      fit_cli),
@@ -171,21 +174,34 @@ def _when(record) -> str:
     return f"{record['converted_from']['commit_date']} (committed)"
 
 
-def table(results: Path = RESULTS) -> str:
-    """The headline table, read from `results`."""
-    lines = ["| case | result | machine, date | results file |",
-             "|---|---|---|---|"]
+def _script(record) -> str:
+    """The benchmark script and options that wrote `record` (its `command`)."""
+    command = record.get("command", "unknown")
+    return f"{record['benchmark']}.py" if command == "unknown" else command
+
+
+def table(results: Path = RESULTS, project: bool = False) -> str:
+    """The headline table, read from `results`; `project`: the project README's,
+    naming the script (in `benchmarks/`) instead of the results file."""
+    last = "benchmark" if project else "results file"
+    lines = [f"| case | result | machine, date | {last} |", "|---|---|---|---|"]
     for path, case, read in ENTRIES:
         record = load_results(results / path)
         machine = MACHINES.get(record["machine"]["name"], record["machine"]["name"])
+        source = _script(record) if project else path
         lines.append(f"| {case} | {read(record)} | {machine}, {_when(record)} | "
-                     f"`{path}` |")
+                     f"`{source}` |")
     return "\n".join(lines)
 
 
 def readme_block(text: str) -> str:
-    """The generated block of the README's `text` (between the markers)."""
+    """The generated block of a README's `text` (between the markers)."""
     return text[text.index(BEGIN) + len(BEGIN):text.index(END)].strip("\n")
+
+
+def _targets():
+    """(README path, its table) for both READMEs."""
+    return [(README, table()), (PROJECT_README, table(project=True))]
 
 
 def main(argv=None) -> int:
@@ -194,18 +210,20 @@ def main(argv=None) -> int:
     parser.add_argument("--check", action="store_true",
                         help="exit 1 if the README's table differs from results/")
     args = parser.parse_args(argv)
-    new = table()
-    text = README.read_text()
     if args.check:
-        stale = readme_block(text) != new
-        print("stale: run benchmarks/headline.py --write" if stale else "current")
-        return int(stale)
+        stale = [str(path) for path, new in _targets()
+                 if readme_block(path.read_text()) != new]
+        print(f"stale: {', '.join(stale)}; run benchmarks/headline.py --write"
+              if stale else "current")
+        return int(bool(stale))
     if args.write:
-        start, end = text.index(BEGIN) + len(BEGIN), text.index(END)
-        README.write_text(text[:start] + "\n" + new + "\n" + text[end:])
-        print(f"wrote {README}")
+        for path, new in _targets():
+            text = path.read_text()
+            start, end = text.index(BEGIN) + len(BEGIN), text.index(END)
+            path.write_text(text[:start] + "\n" + new + "\n" + text[end:])
+            print(f"wrote {path}")
     else:
-        print(new)
+        print(table())
     return 0
 
 
