@@ -931,3 +931,41 @@ def test_batch_equals_fits_one_by_one_through_the_contact_model():
     fits = jc.fit_prony_batch(data, template, 1, vectorize=True)
     singles = [jc.fit_prony(d, template, 1, options=LM) for d in data]
     _batch_matches_singles(fits, singles, same_steps=False, atol=1e-7)
+
+
+class _CrawlingEvaluator:
+    """A stand-in `Evaluator` for `LMRun`: `theta` counts the LM steps taken, the loss
+    is `loss(theta)`."""
+
+    def __init__(self, loss):
+        self.args, self.calls, self._loss = None, 0, loss
+
+    def loss(self, theta):
+        return (self._loss(float(theta)),)
+
+
+@pytest.mark.parametrize("loss, steps, how", [
+    # a parameter creeping along a valley the data do not determine: the loss falls
+    # by 5e-7 of itself in the first run of 50 steps, below STALL_TOL (1e-4)
+    (lambda n: 1.0 + 1e-6 / (1.0 + n), 50, "stalled after 50 steps"),
+    # a loss that still halves every run: LM goes on to its bound
+    (lambda n: 2.0 ** (-n / 50), 200, "stopped after 200 steps"),
+])
+def test_lm_stops_a_run_that_no_longer_lowers_the_loss(monkeypatch, loss, steps, how):
+    """`LMRun` runs LM in compiled runs of `LM_CHUNK` steps and stops, NOT converged,
+    after one that lowered the loss by less than `STALL_TOL` of itself (LM's own test
+    never fires while a parameter creeps: every fit of the committed QI map went to
+    its 200-step bound); a loss still falling goes on to the bound."""
+    runs = []
+
+    def lm_solve(theta, args, rtol, atol, max_steps):  # LM's compiled run, faked
+        runs.append(max_steps)
+        return theta + max_steps, False, max_steps
+
+    monkeypatch.setattr(_lm, "_lm_solve", lm_solve)
+    assert (_lm.LM_CHUNK, _lm.STALL_TOL) == (50, 1e-4)
+    run = _lm.LMRun(_CrawlingEvaluator(loss), 200, jnp.float64, None, [])
+    theta, ok, message, _, _ = run(0.0)
+    assert not ok and how in message and run.total == steps == theta
+    assert runs == [50] * (steps // 50)
+    assert run.stalled == (how.startswith("stalled"))

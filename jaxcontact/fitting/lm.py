@@ -3,7 +3,12 @@ optimistix's `LevenbergMarquardt` on the relative residual, its Jacobian by forw
 mode through the contact solve's implicit tangent solves (one per parameter), one
 compiled program per problem shape; vmapped over a batch of curves for
 `jc.fit_prony_batch`. `LMRun` drives it from a fit (a failure is a message, not an
-exception)."""
+exception), in compiled runs of `LM_CHUNK` steps: a run that lowered the loss by less
+than `STALL_TOL` of itself ends it, NOT converged ("stalled"). LM's own test (on the
+parameters AND the loss) never fires while a parameter creeps towards a bound or along
+a valley the data do not determine (curves without a hold: every run went to its step
+bound, `benchmarks/notes/rings.md`); the fit's certificate judges the end point as
+before."""
 
 import dataclasses
 
@@ -21,6 +26,14 @@ def have_optimistix() -> bool:
     except ImportError:
         return False
     return True
+
+
+# LM steps of one compiled run of `LMRun`, and the relative decrease of the loss over
+# one below which it stops: chi^2 lowered by 1e-4 of itself in 50 steps (0.01 for a fit
+# at the noise of 100 samples), far below what the data resolve; fits that converge in
+# fewer steps (13-44 on the tests' curves) run as one program, as before.
+LM_CHUNK = 50
+STALL_TOL = 1e-4
 
 
 def lm_rtol(dtype) -> float:
@@ -79,20 +92,38 @@ class LMRun:
     message, 0, 0)` (the zeros: no Adam or L-BFGS steps), the end point's loss
     appended to `history`, the LM steps summed in `total`. `ready`: the result
     `(theta, converged, steps)` of this fit's first run, already solved (by
-    `jc.fit_prony_batch`'s batched program), used in place of the first solve."""
+    `jc.fit_prony_batch`'s batched program), used in place of the first solve. A
+    run of more than `LM_CHUNK` steps goes in compiled runs of `LM_CHUNK` (one
+    program; `ready` is the first) and stops, not converged, after one that lowered
+    the loss by less than `STALL_TOL` of itself; `stalled` counts those stops."""
 
     def __init__(self, ev: Evaluator, max_steps: int, dtype, init, history: list,
                  ready=None):
         self.ev, self.max_steps, self.dtype = ev, max_steps, dtype
         self.init, self.history, self.ready = init, history, ready
         self.total = 0
+        self.stalled = 0
 
-    def _solve(self, theta):
+    def _run(self, theta, steps):
         if self.ready is not None:
             ready, self.ready = self.ready, None
             return ready
         rtol = lm_rtol(self.dtype)
-        return _lm_solve(theta, self.ev.args, rtol, 0.1 * rtol, self.max_steps)
+        return _lm_solve(theta, self.ev.args, rtol, 0.1 * rtol, steps)
+
+    def _solve(self, theta):
+        done = 0
+        before = float(self.ev.loss(theta)[0]) if self.max_steps > LM_CHUNK else None
+        while True:
+            theta, ok, steps = self._run(theta, min(LM_CHUNK, self.max_steps - done))
+            done += int(steps)
+            if bool(ok) or done >= self.max_steps:
+                return theta, ok, done
+            after = float(self.ev.loss(theta)[0])
+            if not before - after > STALL_TOL * before:
+                self.stalled += 1
+                return theta, ok, done
+            before = after
 
     def __call__(self, theta, adam_steps=0):
         del adam_steps  # the signature of the Adam + L-BFGS run (`with_probes`)
@@ -100,6 +131,7 @@ class LMRun:
         if not np.isfinite(float(ev.loss(theta)[0])):
             raise ValueError(
                 f"the model gives a non-finite loss at the start {self.init!r}")
+        stalled = self.stalled
         try:
             new, ok, steps = self._solve(theta)
         except eqx.EquinoxRuntimeError as exc:  # a trial made an invalid material
@@ -112,6 +144,9 @@ class LMRun:
         if not np.isfinite(value):  # keep the start rather than a broken end point
             return theta, False, "Levenberg-Marquardt ended at a non-finite loss", 0, 0
         self.history.append(value)
-        message = (f"Levenberg-Marquardt: {'converged' if bool(ok) else 'stopped'} "
-                   f"after {int(steps)} steps")
-        return new, bool(ok), message, 0, 0
+        if self.stalled > stalled:
+            how = (f"stalled after {int(steps)} steps (the last {LM_CHUNK} lowered "
+                   f"the loss by less than {STALL_TOL:g} of itself)")
+        else:
+            how = f"{'converged' if bool(ok) else 'stopped'} after {int(steps)} steps"
+        return new, bool(ok), f"Levenberg-Marquardt: {how}", 0, 0
