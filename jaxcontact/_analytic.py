@@ -90,16 +90,31 @@ class LeeRadok:
     def _radius_history(self, t):
         """`(s, a(s))` on `samples + 1` points of `[0, t]` (one O(samples^2) sum)."""
         np = self._np
-        s = np.linspace(0.0, float(t), self.samples + 1)
-        w = np.asarray([float(self.load(x)) for x in s])
+        n = self.samples
+        s = np.linspace(0.0, float(t), n + 1)
+        w = self._loads(s)
         dw = np.diff(w)
-        mid = 0.5 * (s[1:] + s[:-1])
-        lag = s[:, None] - mid[None, :]  # (ns, ns-1)
-        kernel = np.where(lag > 0, self.creep(np.clip(lag, 0.0, None)), 0.0)
-        integral = self.creep(s) * w[0] + kernel @ dw
+        # On the uniform points the lag s_i - mid_j = (i - j - 1/2) ds depends on i - j
+        # only: the sum over j < i is a convolution with J at (k - 1/2) ds, k = 1..n
+        # (n creep values instead of an (n+1, n) matrix of them).
+        ds = float(t) / n
+        kernel = self.creep((np.arange(1, n + 1) - 0.5) * ds)
+        integral = self.creep(s) * w[0] + np.r_[0.0, np.convolve(kernel, dw)[:n]]
         a = (3 * self.radius * (1 - self.poisson) / 8
              * np.clip(integral, 0.0, None)) ** (1 / 3)
         return s, a
+
+    def _loads(self, s):
+        """`W(s)` [force] at the points `s`: one call on the whole array where `load`
+        takes one (same shape back), else a call per point."""
+        np = self._np
+        try:
+            w = np.asarray(self.load(s), dtype=float)
+        except Exception:  # a load written for one time at a time
+            w = None
+        if w is None or w.shape != s.shape:
+            w = np.asarray([float(self.load(x)) for x in s])
+        return w
 
     def contact_radius(self, t):
         return float(self._radius_history(t)[1][-1])
