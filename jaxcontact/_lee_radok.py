@@ -2,6 +2,8 @@
 the start of `jc.fit_prony(init="lee-radok")` and the viscoelastic contact point of
 `jc.read_afm`. Plain NumPy; no contact solve."""
 
+import itertools
+
 import numpy as np
 
 
@@ -63,22 +65,35 @@ def lee_radok_fit(time, force, depth, mode, *, arms=2, n_tau=20, start=0, weight
     scale = max(float(np.sqrt(np.mean(target**2))), 1e-300)
     cols, target = cols / scale, target / scale
     gram, rhs, tt = cols.T @ cols, cols.T @ target, float(target @ target)
-    import itertools
+    # Every set of `arms` times at once: (K, arms + 1) column indices, the constant
+    # column first, and one batched solve of the (K, arms + 1, arms + 1) systems.
+    combos = np.array([*itertools.combinations(range(1, n_tau + 1), arms)],
+                      dtype=int).reshape(-1, arms)
+    idx = np.concatenate([np.zeros((combos.shape[0], 1), int), combos], axis=1)
+    a = gram[idx[:, :, None], idx[:, None, :]]
+    b = rhs[idx]
+    system = a + 1e-12 * np.trace(a, axis1=1, axis2=2)[:, None, None] * np.eye(arms + 1)
+    try:
+        c = np.linalg.solve(system, b[..., None])[..., 0]
+    except np.linalg.LinAlgError:  # a singular set (a degenerate grid): skip it alone
+        c = np.stack([_solve_or_nan(m, v) for m, v in zip(system, b, strict=True)])
+    value = (tt - 2 * np.sum(c * b, axis=1)
+             + np.einsum("ki,kij,kj->k", c, a, c)) / target.size
+    value = np.maximum(value, 0.0)
+    ok = np.all(np.isfinite(c), axis=1)
+    if positive:
+        ok &= np.all(c > 0, axis=1)
+    if not np.any(ok):
+        return np.inf, None, None
+    k = int(np.argmin(np.where(ok, value, np.inf)))
+    return float(value[k]), taus[combos[k] - 1], c[k]
 
-    best = (np.inf, None, None)
-    for combo in itertools.combinations(range(1, n_tau + 1), arms):
-        idx = (0, *combo)
-        a, b = gram[np.ix_(idx, idx)], rhs[list(idx)]
-        try:
-            c = np.linalg.solve(a + 1e-12 * np.trace(a) * np.eye(len(idx)), b)
-        except np.linalg.LinAlgError:  # pragma: no cover - degenerate grid
-            continue
-        if positive and not np.all(c > 0):
-            continue
-        value = max((tt - 2 * c @ b + c @ a @ c) / target.size, 0.0)
-        if value < best[0]:
-            best = (value, taus[np.asarray(combo) - 1], c)
-    return best
+
+def _solve_or_nan(m, v):
+    try:
+        return np.linalg.solve(m, v)
+    except np.linalg.LinAlgError:
+        return np.full(v.shape, np.nan)
 
 
 def lee_radok_misfit(time, force, depth, mode, *, arms=2, n_tau=20, start=0):

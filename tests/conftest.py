@@ -114,7 +114,7 @@ def pytest_unconfigure(config):
 def _memory_maps() -> int:
     try:
         with open("/proc/self/maps") as maps:
-            return sum(1 for _ in maps)
+            return maps.read().count("\n")
     except OSError:  # not Linux
         return 0
 
