@@ -967,5 +967,23 @@ def test_lm_stops_a_run_that_no_longer_lowers_the_loss(monkeypatch, loss, steps,
     run = _lm.LMRun(_CrawlingEvaluator(loss), 200, jnp.float64, None, [])
     theta, ok, message, _, _ = run(0.0)
     assert not ok and how in message and run.total == steps == theta
+    assert ("stalled" in message) == how.startswith("stalled")
     assert runs == [50] * (steps // 50)
-    assert run.stalled == (how.startswith("stalled"))
+
+
+@pytest.mark.parametrize("max_steps", [20, 200])
+def test_lm_run_that_ends_short_of_its_steps_is_not_continued(monkeypatch, max_steps):
+    """A compiled run that LM ended before its steps for its own reason (a failed
+    solve, not the bound) ends the LM run at once, stopped, whatever `lm_steps`."""
+    runs = []
+
+    def lm_solve(theta, args, rtol, atol, max_steps):
+        runs.append(max_steps)
+        return theta + 7, False, 7
+
+    monkeypatch.setattr(_lm, "_lm_solve", lm_solve)
+    run = _lm.LMRun(_CrawlingEvaluator(lambda n: 1.0 / (1.0 + n)), max_steps,
+                    jnp.float64, None, [])
+    theta, ok, message, _, _ = run(0.0)
+    assert not ok and "stopped after 7 steps" in message and theta == 7
+    assert runs == [min(max_steps, _lm.LM_CHUNK)]

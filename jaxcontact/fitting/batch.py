@@ -17,7 +17,7 @@ from .._scene import Scene
 from .._sweep import BATCH_AXIS, pad_batch
 from .data import IndentationData
 from .fit import fit_problem, fit_prony, set_up
-from .lm import LM_CHUNK, have_optimistix, lm_rtol, lm_solve_batch
+from .lm import have_optimistix, lm_rtol, lm_solve_batch, run_steps
 from .options import FitOptions, with_legacy
 
 
@@ -229,10 +229,10 @@ def _vectorized(curves, scene_template, n_terms, options: FitOptions, devices):
     theta_b = jax.tree.map(lambda x: place(x, 0), theta_b)
     stacked_args = jax.tree.map(place, stacked_args, axes, is_leaf=lambda x: x is None)
     rtol = lm_rtol(dtype)
-    # The first compiled LM run of every curve (`LMRun`: at most `LM_CHUNK` steps),
-    # batched; a curve that needs more continues on its own in `fit_problem`.
+    # The first compiled LM run of every curve (`LMRun`), batched; a curve that needs
+    # more continues on its own in `fit_problem`.
     new, ok, steps = lm_solve_batch(theta_b, stacked_args, axes, rtol, 0.1 * rtol,
-                                    min(options.lm_steps, LM_CHUNK))
+                                    run_steps(options.lm_steps))
 
     # -- Finish up, curve by curve ---------------------------------------------------
     return [fit_problem(p, options, lm_ready=(jax.tree.map(lambda x, i=i: x[i], new),

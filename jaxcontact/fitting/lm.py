@@ -36,6 +36,12 @@ LM_CHUNK = 50
 STALL_TOL = 1e-4
 
 
+def run_steps(max_steps: int, done: int = 0) -> int:
+    """The steps of the next compiled run of `LMRun` after `done` of `max_steps`
+    (`jc.fit_prony_batch` batches the first)."""
+    return min(LM_CHUNK, max_steps - done)
+
+
 def lm_rtol(dtype) -> float:
     """LM's relative tolerance (its absolute one is a tenth of it) for `dtype`."""
     return 1e-8 if jnp.finfo(dtype).bits >= 64 else 1e-4
@@ -95,14 +101,13 @@ class LMRun:
     `jc.fit_prony_batch`'s batched program), used in place of the first solve. A
     run of more than `LM_CHUNK` steps goes in compiled runs of `LM_CHUNK` (one
     program; `ready` is the first) and stops, not converged, after one that lowered
-    the loss by less than `STALL_TOL` of itself; `stalled` counts those stops."""
+    the loss by less than `STALL_TOL` of itself."""
 
     def __init__(self, ev: Evaluator, max_steps: int, dtype, init, history: list,
                  ready=None):
         self.ev, self.max_steps, self.dtype = ev, max_steps, dtype
         self.init, self.history, self.ready = init, history, ready
         self.total = 0
-        self.stalled = 0
 
     def _run(self, theta, steps):
         if self.ready is not None:
@@ -111,29 +116,31 @@ class LMRun:
         rtol = lm_rtol(self.dtype)
         return _lm_solve(theta, self.ev.args, rtol, 0.1 * rtol, steps)
 
-    def _solve(self, theta):
+    def _solve(self, theta, before):
+        """`(theta, converged, steps, stalled)` of one LM run in compiled runs from
+        `theta`, whose loss is `before`."""
         done = 0
-        before = float(self.ev.loss(theta)[0]) if self.max_steps > LM_CHUNK else None
         while True:
-            theta, ok, steps = self._run(theta, min(LM_CHUNK, self.max_steps - done))
+            chunk = run_steps(self.max_steps, done)
+            theta, ok, steps = self._run(theta, chunk)
             done += int(steps)
-            if bool(ok) or done >= self.max_steps:
-                return theta, ok, done
+            # converged, at the bound, or ended short of its steps for its own reason
+            if bool(ok) or done >= self.max_steps or int(steps) < chunk:
+                return theta, ok, done, False
             after = float(self.ev.loss(theta)[0])
             if not before - after > STALL_TOL * before:
-                self.stalled += 1
-                return theta, ok, done
+                return theta, ok, done, True
             before = after
 
     def __call__(self, theta, adam_steps=0):
         del adam_steps  # the signature of the Adam + L-BFGS run (`with_probes`)
         ev = self.ev
-        if not np.isfinite(float(ev.loss(theta)[0])):
+        start_loss = float(ev.loss(theta)[0])
+        if not np.isfinite(start_loss):
             raise ValueError(
                 f"the model gives a non-finite loss at the start {self.init!r}")
-        stalled = self.stalled
         try:
-            new, ok, steps = self._solve(theta)
+            new, ok, steps, stalled = self._solve(theta, start_loss)
         except eqx.EquinoxRuntimeError as exc:  # a trial made an invalid material
             first_line = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
             return theta, False, ("Levenberg-Marquardt stopped: a trial step made an "
@@ -144,7 +151,7 @@ class LMRun:
         if not np.isfinite(value):  # keep the start rather than a broken end point
             return theta, False, "Levenberg-Marquardt ended at a non-finite loss", 0, 0
         self.history.append(value)
-        if self.stalled > stalled:
+        if stalled:
             how = (f"stalled after {int(steps)} steps (the last {LM_CHUNK} lowered "
                    f"the loss by less than {STALL_TOL:g} of itself)")
         else:
