@@ -116,7 +116,8 @@ def main(argv=None) -> int:
     result["settings"] = dict(
         size=args.size, grid=nb["grid"], grids=nb["grids"], study_grid=nb["study_grid"],
         fig24_study_grid=nb["fig24_grids"][0], fig24_extra_grid=nb["fig24_grids"][1],
-        dtype="float64", notebook=str(NOTEBOOK.relative_to(ROOT)),
+        dtype="float64", threads=nb.get("threads", 1),
+        notebook=str(NOTEBOOK.relative_to(ROOT)),
         figures=str(figures.relative_to(ROOT)) if figures.is_relative_to(ROOT)
         else str(figures))
     result["rows"] = rows_of(verdicts)
@@ -126,6 +127,7 @@ def main(argv=None) -> int:
         # CPU seconds of the process (user + system): the machine's load inflates the
         # wall time, not this
         cpu_seconds=round(usage.ru_utime + usage.ru_stime, 1),
+        # the solves' own wall times: with two at a time their sum exceeds `seconds`
         solve_seconds=round(sum(s["seconds"] for s in nb["solves"]), 1),
         solves=len(nb["solves"]),
         checks_passed=sum(c["passed"] for c in nb["checks"]))

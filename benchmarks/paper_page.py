@@ -102,7 +102,9 @@ def provenance(size, path, table):
         f"{', '.join(f'{n}^2' for n in st['grids'])}, Fig. 24's added rows on "
         f"{st['fig24_study_grid']}^2 and {st['fig24_extra_grid']}^2); "
         f"{m['processor']}, "
-        f"{m['cpu_count_usable']} usable CPUs, {m['backend']}; "
+        f"{m['cpu_count_usable']} usable CPUs, {m['backend']}, "
+        f"{st.get('threads', 1)} solve{'s' if st.get('threads', 1) > 1 else ''} "
+        "at a time; "
         f"jax {table['versions']['jax']}, {st['dtype']}; "
         f"commit `{str(table['commit'])[:7]}`"
         + (" (jaxcontact/ modified)" if table["dirty"] else "")

@@ -14,6 +14,7 @@ from ._cache import enable_compilation_cache as enable_compilation_cache
 from ._dataset import load as load
 from ._force_map import fit_force_map as fit_force_map
 from ._grid import Grid as Grid
+from ._history import time_step_amplification as time_step_amplification
 from ._indenter import AbstractAxisymmetricIndenter as AbstractAxisymmetricIndenter
 from ._indenter import AbstractIndenter as AbstractIndenter
 from ._indenter import AxisymmetricProfile as AxisymmetricProfile
@@ -77,7 +78,7 @@ __all__ = [
     "Scene", "solve", "Solution", "RESULTS", "sweep",
     "solve_normal", "NormalSolution", "HalfSpace", "influence_coefficients",
     "subsurface_stress", "Stress", "surface_displacement", "load",
-    "enable_compilation_cache",
+    "enable_compilation_cache", "time_step_amplification",
     # Materials
     "AbstractMaterial", "Elastic", "Maxwell", "Zener", "Prony", "CreepSeries",
     # Step solvers and gradients

@@ -32,9 +32,11 @@ Schemes (all carry the traction of the previous step):
 
 from typing import NamedTuple
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
+from . import _validate
 from ._material.elastic import Elastic
 
 
@@ -160,6 +162,43 @@ def constant_scheme_amplification(series, dt: float) -> float:
         return 0.0
     m = np.diag(q) - np.outer(np.ones_like(q), c) / glassy
     return float(np.max(np.abs(np.linalg.eigvals(m))))
+
+
+def worst_time_step(material, times) -> tuple[float, float]:
+    """`(amplification, dt)`: the largest `constant_scheme_amplification` over the
+    distinct steps of `times` and the step that has it; `(0.0, 0.0)` for an elastic
+    material, one without a creep series, or fewer than two times."""
+    series = getattr(material, "creep_series", None)
+    if series is None or isinstance(material, Elastic) or np.shape(times)[0] < 2:
+        return 0.0, 0.0
+    if _validate.is_traced(times) or _validate.is_traced(material):
+        raise TypeError("time_step_amplification needs concrete material and times, "
+                        "not traced ones (call it outside jit / grad / vmap)")
+    steps = np.unique(np.diff(np.asarray(times, np.float64)))
+    # concrete even inside `jit` (whose trace would stage the series' arithmetic)
+    with jax.ensure_compile_time_eval():
+        series = series()
+    return max((constant_scheme_amplification(series, float(dt)), float(dt))
+               for dt in steps)
+
+
+def time_step_amplification(material, times) -> float:
+    """How far the time steps of `times` are from the stability limit of the
+    piecewise-constant (paper's) time scheme with `material`.
+
+    **Arguments:**
+
+    - `material`: a `jc.Elastic`, `jc.Maxwell`, `jc.Zener` or `jc.Prony` (concrete).
+    - `times`: shape `(nt,)` [time], the scene's time points (concrete).
+
+    **Returns:** the largest spectral radius of the scheme's step-to-step map over
+    the distinct steps (dimensionless). Above 1 the scheme is unstable: the solution
+    oscillates from step to step, and `jc.solve` warns `jc.TimeStepWarning`
+    (`scheme="linear"` has no such limit). 0 for an elastic material, a material
+    without a creep series, or fewer than two times. Lets a caller know ahead of a
+    solve (e.g. before solving in threads, where recording warnings is not safe).
+    """
+    return worst_time_step(material, times)[0]
 
 
 def check_time_options(throw, history: str, scheme: str) -> None:

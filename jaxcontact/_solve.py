@@ -10,9 +10,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import _validate
-from ._history import check_time_options, constant_scheme_amplification, history_for
+from ._history import check_time_options, history_for, worst_time_step
 from ._loading import Force
-from ._material.elastic import Elastic
 from ._operator import HalfSpace
 from ._scene import Scene, check_targets, normal_targets, tangential_targets
 from ._solution import RESULTS, Solution
@@ -217,18 +216,11 @@ def _raise_on_failure(sol: Solution) -> Solution:
 
 def warn_unstable_steps(material, times):
     """`jc.TimeStepWarning` when a step makes the piecewise-constant scheme unstable
-    (`_history.constant_scheme_amplification` > 1). Concrete inputs with a creep
-    series only: nothing is checked inside a transformation."""
-    series = getattr(material, "creep_series", None)
-    if (series is None or isinstance(material, Elastic) or times.shape[0] < 2
-            or _validate.is_traced(times) or _validate.is_traced(material)):
+    (`jc.time_step_amplification` > 1). Concrete inputs only: nothing is checked
+    inside a transformation."""
+    if _validate.is_traced(times) or _validate.is_traced(material):
         return
-    steps = np.unique(np.diff(np.asarray(times, np.float64)))
-    # concrete even inside `jit` (whose trace would stage the series' arithmetic)
-    with jax.ensure_compile_time_eval():
-        series = series()
-    radius, worst = max((constant_scheme_amplification(series, float(dt)), float(dt))
-                        for dt in steps)
+    radius, worst = worst_time_step(material, times)
     if radius > 1.0:
         warnings.warn(
             f"a time step of {worst:.3g} is too long for the piecewise-constant scheme "

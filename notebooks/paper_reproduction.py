@@ -42,6 +42,7 @@ import math
 import os
 import time
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 
 import jax
 
@@ -133,24 +134,57 @@ def canonical(scene):
     )
 
 
-def solve(scene, label):
-    start = time.perf_counter()
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", jc.TimeStepWarning)
+# Two solves at a time: JAX releases the GIL while a compiled program runs, and one
+# solve keeps only ~1.4 of the 2 CPU cores busy (two 256^2 solves side by side: 1.66x,
+# bit-identical; benchmarks/notes/paper_claims.md). `JAXCONTACT_NOTEBOOK_THREADS=1`:
+# one at a time.
+THREADS = int(os.environ.get("JAXCONTACT_NOTEBOOK_THREADS", "2"))
+POOL = ThreadPoolExecutor(max_workers=THREADS)
+# The notebook reports an unstable step itself (`jc.time_step_amplification`, asked
+# before the threads start: recording warnings is not thread-safe).
+warnings.filterwarnings("ignore", category=jc.TimeStepWarning)
+
+
+def solve_all(jobs):
+    """`{key: (scene, label)}` -> `{key: solution}`, solved `THREADS` at a time, the
+    dearest first (cells x time points) so that the last ones are short; each solve
+    recorded in `SOLVES` (its `seconds`: wall time, shared with the other thread)."""
+    def run(scene, label, unstable):
+        start = time.perf_counter()
         sol = jax.tree_util.tree_map(np.asarray, jc.solve(canonical(scene)))
-    unstable = any(issubclass(w.category, jc.TimeStepWarning) for w in caught)
-    seconds = time.perf_counter() - start
-    bad = int((~sol.converged).sum())
-    SOLVES.append(dict(label=label, grid=int(scene.grid.shape[0]),
-                       steps=int(scene.times.shape[0]), seconds=round(seconds, 2),
-                       not_converged=bad, time_step_warning=unstable))
-    print(
-        f"[{label}] {scene.times.shape[0]} steps on {scene.grid.shape[0]}^2: "
-        f"{seconds:.1f} s, "
-        f"{'all converged' if not bad else f'{bad} steps NOT converged'}"
-        + (" (jc.TimeStepWarning: the step is unstable)" if unstable else "")
-    )
-    return sol
+        seconds = time.perf_counter() - start
+        bad = int((~sol.converged).sum())
+        print(
+            f"[{label}] {scene.times.shape[0]} steps on {scene.grid.shape[0]}^2: "
+            f"{seconds:.1f} s, "
+            f"{'all converged' if not bad else f'{bad} steps NOT converged'}"
+            + (" (jc.TimeStepWarning: the step is unstable)" if unstable else ""),
+            flush=True,
+        )
+        return sol, dict(label=label, grid=int(scene.grid.shape[0]),
+                         steps=int(scene.times.shape[0]), seconds=round(seconds, 2),
+                         not_converged=bad, time_step_warning=unstable)
+
+    def cost(key):
+        scene = jobs[key][0]
+        return -scene.grid.shape[0] * scene.grid.shape[1] * scene.times.shape[0]
+
+    futures = {
+        key: POOL.submit(run, scene, label,
+                         jc.time_step_amplification(scene.material, scene.times) > 1)
+        for key in sorted(jobs, key=cost)
+        for scene, label in [jobs[key]]
+    }
+    solutions = {}
+    for key in jobs:  # recorded in the order asked, whatever the order done
+        solutions[key], record = futures[key].result()
+        SOLVES.append(record)
+    return solutions
+
+
+def solve(scene, label):
+    """One solve (`solve_all` of one job)."""
+    return solve_all({label: (scene, label)})[label]
 
 
 def check(condition, what):
@@ -199,8 +233,8 @@ def write_verdicts():
     with open(VERDICT_FILE, "w", encoding="utf-8") as f:
         json.dump(dict(size=SIZE, grid=N, grids=list(GRIDS), study_grid=NS,
                        fig24_grids=[globals().get("NS24"), globals().get("NSX")],
-                       seconds=time.perf_counter() - START, verdicts=VERDICTS,
-                       checks=CHECKS, solves=SOLVES), f, indent=1)
+                       threads=THREADS, seconds=time.perf_counter() - START,
+                       verdicts=VERDICTS, checks=CHECKS, solves=SOLVES), f, indent=1)
 
 
 def cells(sol, k=-1):
@@ -558,10 +592,11 @@ verdict(
 
 # %%
 fig, axes = plt.subplots(1, 4, figsize=(15, 3.5), sharey=True)
+scenes8 = {ratio: P.zener(ratio=ratio, n=N, steps=steps(61)) for ratio in (2, 4, 8, 10)}
+sols8 = solve_all({r: (scene, f"Zener ratio {r}") for r, scene in scenes8.items()})
 zener = {}
-for ax, ratio in zip(axes, (2, 4, 8, 10)):
-    scene = P.zener(ratio=ratio, n=N, steps=steps(61))
-    sol = solve(scene, f"Zener ratio {ratio}")
+for ax, ratio in zip(axes, scenes8):
+    scene, sol = scenes8[ratio], sols8[ratio]
     zener[ratio] = (scene, sol)
     profiles(ax, scene, sol, picks_of(sol), A0, P0)
     ax.set(title=f"Fig. 8: ratio {ratio}", xlabel="x / a0")
@@ -596,11 +631,11 @@ verdict(
 # stable but alternates, and the alternation decays over the first steps: the paper's
 # "oscillating results around the contacting edge during the early period".
 COARSE8 = (9, 17)
-coarse8, unstable8 = {}, {}
-for nt in COARSE8:
-    coarse8[nt] = solve(P.zener(ratio=10, n=N, steps=nt), f"Fig. 8d, ratio 10, {nt} "
-                        "points")
-    unstable8[nt] = SOLVES[-1]["time_step_warning"]
+scenes8d = {nt: P.zener(ratio=10, n=N, steps=nt) for nt in COARSE8}
+coarse8 = solve_all({nt: (scene, f"Fig. 8d, ratio 10, {nt} points")
+                     for nt, scene in scenes8d.items()})
+unstable8 = {nt: jc.time_step_amplification(scene.material, scene.times) > 1
+             for nt, scene in scenes8d.items()}
 # the fine run: the paper's 61 points; at CI size the 17 points again (no compile)
 fine_scene, fine = zener[10] if not CI else (P.zener(ratio=10, n=N, steps=17),
                                              coarse8[17])
@@ -801,17 +836,19 @@ def rise_history(sol):
 
 # At CI size 25 points (dt = 25 s): with 9 (dt = 75 s) the fictitious material's
 # constant-scheme amplification exceeds 1 (jc.TimeStepWarning) and it oscillates.
-for a, material, nt in ((ax[0], "pmma", 61), (ax[1], "fictitious", 121)):
-    scene = P.weichert(material, n=N, steps=25 if CI else nt)
-    sol = solve(scene, f"Fig. 12, {material}")
+# The fictitious material's spike on the coarser grids too: is its size and time a
+# property of the material or of the grid?
+jobs12 = {(m, n): (P.weichert(m, n=n, steps=25 if CI else nt), f"Fig. 12, {m}, {n}^2")
+          for m, nt in (("pmma", 61), ("fictitious", 121))
+          for n in ((N,) if m == "pmma" else GRIDS)}
+sols12 = solve_all(jobs12)
+for a, material in ((ax[0], "pmma"), (ax[1], "fictitious")):
+    scene, sol = jobs12[material, N][0], sols12[material, N]
     profiles(a, scene, sol, picks_of(sol), 1e-6, 1e6)
     a.set(title=f"Fig. 12: {material}", xlabel="x [um]", ylabel="p [MPa]")
     w12[material, N] = rise_history(sol)
-# The fictitious material's spike on the coarser grids: is its size and time a property
-# of the material or of the grid?
 for n in GRIDS[:-1]:
-    scene = P.weichert("fictitious", n=n, steps=25 if CI else 121)
-    w12["fictitious", n] = rise_history(solve(scene, f"Fig. 12, fictitious, {n}^2"))
+    w12["fictitious", n] = rise_history(sols12["fictitious", n])
 for n in GRIDS:
     ax[2].plot(sol.times, w12["fictitious", n][4], ".-", ms=3, label=f"{n}^2")
 ax[2].set(xlabel="t [s]", ylabel="edge rise / p_max",
@@ -897,12 +934,13 @@ def approach_follows_creep(scene, sol):
 
 # %%
 fig, ax = plt.subplots(1, 3, figsize=(14, 3.6))
+scenes13 = {ratio: P.coupled_normal(ratio=ratio, n=N, steps=steps(81),
+                                    duration=duration(2.0, 0.5)) for ratio in (3, 10)}
+sols13 = solve_all({r: (scene, f"Figs. 13-15, ratio {r}")
+                    for r, scene in scenes13.items()})
 normal_only = {}
 for ratio in (3, 10):
-    scene = P.coupled_normal(
-        ratio=ratio, n=N, steps=steps(81), duration=duration(2.0, 0.5)
-    )
-    sol = solve(scene, f"Figs. 13-15, ratio {ratio}")
+    scene, sol = scenes13[ratio], sols13[ratio]
     normal_only[ratio] = (scene, sol)
     good = ok(sol)
     check(
@@ -1045,10 +1083,11 @@ verdict(
 # rear, lower at the front (19). "Front" is +x, the direction the indenter is pushed.
 
 # %%
-cases = {}
-for name in ("lc", "dc"):
-    scene = P.build(name, n=N, steps=steps(81), duration=duration(2.0, 0.5))
-    cases[name] = (scene, solve(scene, f"Figs. 16-19, {name.upper()}"))
+scenes16 = {name: P.build(name, n=N, steps=steps(81), duration=duration(2.0, 0.5))
+            for name in ("lc", "dc")}
+sols16 = solve_all({name: (scene, f"Figs. 16-19, {name.upper()}")
+                    for name, scene in scenes16.items()})
+cases = {name: (scenes16[name], sols16[name]) for name in scenes16}
 (lc_scene, lc), (dc_scene, dc) = cases["lc"], cases["dc"]
 fig, ax = plt.subplots(1, 3, figsize=(14, 3.6))
 for name, (scene, sol) in cases.items():
@@ -1086,12 +1125,14 @@ check(
 # ratio falls with f (Cattaneo-Mindlin: (c / a)^2 = (1 - f)^(2/3) uncoupled).
 f_dc = dc.tangential_force[:, 0] / (MU * dc.normal_force)
 f_probe = np.array([f_dc[0], f_dc[len(f_dc) // 2], f_dc[-1]])
-probe = {}
-for f in f_probe:
-    s = jc.Scene(lc_scene.grid, lc_scene.indenter, lc_scene.material, np.zeros(1),
-                 normal=jc.Force(W), x=jc.Force(float(f) * MU * W), friction=MU,
-                 coupling="full", slip="total")
-    probe[float(f)] = (s, solve(s, f"one elastic step, F_x = {f:.3f} mu W"))
+scenes_probe = {
+    float(f): jc.Scene(lc_scene.grid, lc_scene.indenter, lc_scene.material,
+                       np.zeros(1), normal=jc.Force(W), x=jc.Force(float(f) * MU * W),
+                       friction=MU, coupling="full", slip="total")
+    for f in f_probe}
+sols_probe = solve_all({f: (s, f"one elastic step, F_x = {f:.3f} mu W")
+                        for f, s in scenes_probe.items()})
+probe = {f: (scenes_probe[f], sols_probe[f]) for f in scenes_probe}
 elastic_stick = {f: float(o.stick_ratio[0]) for f, (s, o) in probe.items()}
 ax[2].plot(f_dc, dc.stick_ratio, ".-", label="DC over time")
 ax[2].plot(list(elastic_stick), list(elastic_stick.values()), "s",
@@ -1343,9 +1384,22 @@ verdict(
 fig, ax = plt.subplots(1, 3, figsize=(16, 3.8))
 f20, grid20 = {}, {}
 NT20 = steps(81)
+jobs20 = {}
 for ratio in (3, 5, 10):
-    scene = P.dc(ratio=ratio, n=N, steps=NT20, duration=duration(2.0, 0.5))
-    sol = solve(scene, f"Fig. 20, ratio {ratio}")
+    for n in GRIDS:  # (at CI size the one grid: solved once)
+        jobs20[ratio, n, NT20] = (
+            P.dc(ratio=ratio, n=n, steps=NT20, duration=duration(2.0, 0.5)),
+            f"Fig. 20, ratio {ratio}" if n == N else f"Fig. 20b, ratio {ratio}, {n}^2")
+    jobs20[ratio, NS, 2 * NT20 - 1] = (
+        P.dc(ratio=ratio, n=NS, steps=2 * NT20 - 1, duration=duration(2.0, 0.5)),
+        f"Fig. 20b, ratio {ratio}, {NS}^2, {2 * NT20 - 1} points")
+# Figs. 21-22's relaxation run is solved here too, beside these (one long solve alone
+# would leave a core idle).
+jobs20["relaxation"] = (P.relaxation(n=N, steps=steps(81), duration=duration(2.0, 0.5)),
+                        "Figs. 21-22, relaxation")
+sols20 = solve_all(jobs20)
+for ratio in (3, 5, 10):
+    sol = sols20[ratio, N, NT20]
     f = sol.tangential_force[:, 0] / (MU * sol.normal_force)
     f20[ratio] = (sol.stick_ratio[-1], f[-1],
                   sol.contact[-1].sum() / sol.contact[0].sum(), jitter(sol))
@@ -1355,14 +1409,9 @@ for ratio in (3, 5, 10):
                label=f"A_s, ratio {ratio}")
     ax[1].plot(sol.times / TAU, sol.stick_ratio, ".-", label=f"stick, ratio {ratio}")
     ax[1].plot(sol.times / TAU, f, ":", label=f"F_x / mu W, ratio {ratio}")
-    grid20[ratio, N, NT20] = sol.stick_ratio[-1]
-    for n in GRIDS[:-1]:
-        s = solve(P.dc(ratio=ratio, n=n, steps=NT20, duration=duration(2.0, 0.5)),
-                  f"Fig. 20b, ratio {ratio}, {n}^2")
-        grid20[ratio, n, NT20] = s.stick_ratio[-1]
-    s = solve(P.dc(ratio=ratio, n=NS, steps=2 * NT20 - 1, duration=duration(2.0, 0.5)),
-              f"Fig. 20b, ratio {ratio}, {NS}^2, {2 * NT20 - 1} points")
-    grid20[ratio, NS, 2 * NT20 - 1] = s.stick_ratio[-1]
+    for key in ((ratio, n, NT20) for n in GRIDS):
+        grid20[key] = sols20[key].stick_ratio[-1]
+    grid20[ratio, NS, 2 * NT20 - 1] = sols20[ratio, NS, 2 * NT20 - 1].stick_ratio[-1]
 for ratio in (3, 5, 10):
     ax[2].plot(GRIDS, [grid20[ratio, n, NT20] for n in GRIDS], "o-",
                label=f"ratio {ratio}, {NT20} points")
@@ -1435,8 +1484,8 @@ verdict(
 # insignificantly with time" compared with the creep case (22).
 
 # %%
-scene = P.relaxation(n=N, steps=steps(81), duration=duration(2.0, 0.5))
-rel = solve(scene, "Figs. 21-22, relaxation")
+# (solved with Fig. 20's runs)
+scene, rel = jobs20["relaxation"][0], sols20["relaxation"]
 fig, ax = plt.subplots(1, 2, figsize=(10, 3.8))
 for label, s in (("relaxation", rel), ("creep (DC)", dc)):
     ax[0].plot(s.times / TAU, s.tangential_force[:, 0] / (MU * s.normal_force), ".-",
@@ -1574,15 +1623,16 @@ def sliding_scene(coupling, **kw):
 RATES = (4e-3, 8e-3) if CI else (1e-3, 2e-3, 4e-3, 8e-3)
 WINDOW = duration(2.0, 0.5)
 NT = steps(81)
-found = {}
+jobs23 = {}
 for coupling in ("x", "full"):
     # semi-coupled: Fig. 23's two ratios; fully coupled: ratio 10 (Figs. 24-27)
     for ratio in ((10,) if CI or coupling == "full" else (3, 10)):
         for rate in RATES[:2] if coupling == "x" else RATES:
             scene = P.sliding(ratio=ratio, rate=rate, coupling=coupling, n=N, steps=NT,
                               duration=WINDOW)
-            found[coupling, ratio, rate] = solve(
+            jobs23[coupling, ratio, rate] = (
                 scene, f"Figs. 23-25, {coupling}, ratio {ratio}, v {rate:g}")
+found = solve_all(jobs23)
 fig, ax = plt.subplots(1, 2, figsize=(11, 3.8))
 for (c, r, v), s in found.items():
     if c != "x":
@@ -1731,6 +1781,7 @@ for speed in ("slow", "fast"):
     runs24 += [(speed, "full", "incremental", nt, NSX) for nt in STEPS_X]
 # the slow rate's 81-point runs are Fig. 23-25's
 study = {("slow", c, "total", NT, N): found[c, 10, RATES[0]] for c in ("x", "full")}
+jobs24 = {}
 for key in runs24:
     speed, c, law, nt, n = key
     if key in study:
@@ -1741,7 +1792,8 @@ for key in runs24:
     else:
         scene = sliding_scene(c, ratio=10, rate=rate, n=n, steps=nt, duration=window,
                               slip=law)
-    study[key] = solve(scene, f"Fig. 24, {speed}, {c}, {law} law, {nt} points, {n}^2")
+    jobs24[key] = (scene, f"Fig. 24, {speed}, {c}, {law} law, {nt} points, {n}^2")
+study |= solve_all(jobs24)
 
 
 def ending(sol, by="displacement"):
@@ -1934,11 +1986,10 @@ for rate in RATES:
     ax[0].plot(s.times / TAU, s.stick_ratio, ".-", ms=3,
                label=f"v = {rate * 1e6:.0f} um/s")
 # the same rates at twice the points: the critical value against the step
-fine25 = {}
-for rate in RATES[-2:]:
-    s = solve(P.sliding(ratio=10, rate=rate, n=N, steps=2 * NT - 1, duration=WINDOW),
-              f"Fig. 25, v {rate:g}, {2 * NT - 1} points")
-    fine25[rate] = (transition(s)[1], ending(s))
+sols25 = solve_all({
+    rate: (P.sliding(ratio=10, rate=rate, n=N, steps=2 * NT - 1, duration=WINDOW),
+           f"Fig. 25, v {rate:g}, {2 * NT - 1} points") for rate in RATES[-2:]})
+fine25 = {rate: (transition(s)[1], ending(s)) for rate, s in sols25.items()}
 ax[0].set(xlabel="t / tau", ylabel="stick ratio", title="Fig. 25a (full, ratio 10)")
 ax[0].legend(fontsize=7)
 tt = np.linspace(0, WINDOW * TAU, 201)
@@ -2020,20 +2071,20 @@ verdict(
 # differently in the two cases (Fig. 27).
 
 # %%
-creep = solve(
-    P.sliding(ratio=10, rate=RATES[0], normal="force", n=N, steps=NT, duration=WINDOW),
-    "Figs. 26-27, normal load",
-)
 # The held load needs a far larger delta_x to slide (W stays 0.15 N while the
 # relaxation case's W falls tenfold; the relaxed Cattaneo-Mindlin estimate, 3 mu W (2 -
 # nu) / (16 mu_0 a_inf), is ~60 um, 6 tau at 1e3 um/s): the creep case again over a
-# window long enough, at twice Fig. 26's step.
+# window long enough, at twice Fig. 26's step (at CI size the program of Fig. 20b's
+# 17-point runs).
 CREEP_WINDOW = 4 * WINDOW
-creep_long = solve(  # at CI size the program of Fig. 20b's 17-point runs
-    P.sliding(ratio=10, rate=RATES[0], normal="force", n=N, steps=2 * NT - 1,
-              duration=CREEP_WINDOW),
-    f"Fig. 26, normal load, {CREEP_WINDOW:g} tau",
-)
+sols26 = solve_all({
+    "window": (P.sliding(ratio=10, rate=RATES[0], normal="force", n=N, steps=NT,
+                         duration=WINDOW), "Figs. 26-27, normal load"),
+    "long": (P.sliding(ratio=10, rate=RATES[0], normal="force", n=N, steps=2 * NT - 1,
+                       duration=CREEP_WINDOW),
+             f"Fig. 26, normal load, {CREEP_WINDOW:g} tau"),
+})
+creep, creep_long = sols26["window"], sols26["long"]
 relax = found["full", 10, RATES[0]]
 fig, ax = plt.subplots(1, 2, figsize=(12, 3.8))
 for a in ax:

@@ -56,6 +56,23 @@ def test_amplification_of_one_arm_is_the_closed_form():
                                    rtol=1e-10)
 
 
+def test_time_step_amplification_is_the_worst_step_and_decides_the_warning():
+    """`jc.time_step_amplification`: the largest closed-form radius over the distinct
+    steps (a stable step and an unstable one in one time axis), 0 where there is no
+    history; the warning of `jc.solve` fires exactly above 1."""
+    stable, unstable = float(_times(2.5)[1]), float(_times(3.5)[1])
+    times = jnp.concatenate([jnp.arange(4) * stable, 3 * stable + unstable
+                             + jnp.arange(3) * stable])
+    expected = abs(1 - 10 * (1 - np.exp(-unstable / TAU)))
+    np.testing.assert_allclose(jc.time_step_amplification(MATERIAL, times), expected,
+                               rtol=1e-10)
+    assert jc.time_step_amplification(MATERIAL, _times(2.5)) < 1.0
+    assert jc.time_step_amplification(jc.Elastic(G, NU), times) == 0.0
+    assert jc.time_step_amplification(MATERIAL, times[:1]) == 0.0
+    with pytest.raises(TypeError, match="concrete"):
+        jax.jit(lambda t: jc.time_step_amplification(MATERIAL, t))(times)
+
+
 def test_zener_creep_ratio_over_one_step():
     """`tau` of `jc.Zener` is the creep time: J(dt)/J(0) = 10 - 9 exp(-dt/tau)."""
     times = _times(3.5)
