@@ -25,10 +25,10 @@
 # run two steps, 9 and 17 points, the added variants one; its numbers mean little),
 # `small` (default, 64 x 64, the paper's time steps) or `paper` (256 x 256). The grid
 # and step studies that settle a verdict (Figs. 12, 20b, 24) add coarser grids
-# (`GRIDS`) and run the dearest variants on those (`NS`, `NS24`, `NSX`: 128^2 and 64^2
-# at paper size, to keep its run within 20 minutes on 2 CPU cores). The checks below
-# (`check`: convergence, load balance, Coulomb, Lee & Radok) are asserted at every
-# size.
+# (`GRIDS`) and run the dearest variants on those (`NS`, `NS24`, `NST`, `NSX`: 128^2
+# and 64^2 at paper size), two solves at a time (`THREADS`), to keep its run within 20
+# minutes on 2 CPU cores. The checks below (`check`: convergence, load balance,
+# Coulomb, Lee & Radok) are asserted at every size.
 #
 # Compilation dominates at small sizes: JAX compiles one solver program per kind of
 # scene (material type, which loads are forces or displacements, coupling, grid shape,
@@ -146,12 +146,14 @@ warnings.filterwarnings("ignore", category=jc.TimeStepWarning)
 
 
 def solve_all(jobs):
-    """`{key: (scene, label)}` -> `{key: solution}`, solved `THREADS` at a time, the
-    dearest first (cells x time points) so that the last ones are short; each solve
-    recorded in `SOLVES` (its `seconds`: wall time, shared with the other thread)."""
-    def run(scene, label, unstable):
+    """`{key: (scene, label)}` or `{key: (scene, label, solver)}` -> `{key: solution}`,
+    solved `THREADS` at a time, the dearest first (cells x time points) so that the
+    last ones are short; each solve recorded in `SOLVES` (its `seconds`: wall time,
+    shared with the other thread). `solver`: `jc.solve`'s (default: its own choice)."""
+    def run(scene, label, unstable, solver=None):
         start = time.perf_counter()
-        sol = jax.tree_util.tree_map(np.asarray, jc.solve(canonical(scene)))
+        sol = jax.tree_util.tree_map(np.asarray,
+                                     jc.solve(canonical(scene), solver=solver))
         seconds = time.perf_counter() - start
         bad = int((~sol.converged).sum())
         print(
@@ -171,9 +173,10 @@ def solve_all(jobs):
 
     futures = {
         key: POOL.submit(run, scene, label,
-                         jc.time_step_amplification(scene.material, scene.times) > 1)
+                         jc.time_step_amplification(scene.material, scene.times) > 1,
+                         *solver)
         for key in sorted(jobs, key=cost)
-        for scene, label in [jobs[key]]
+        for scene, label, *solver in [jobs[key]]
     }
     solutions = {}
     for key in jobs:  # recorded in the order asked, whatever the order done
@@ -1394,9 +1397,14 @@ for ratio in (3, 5, 10):
         P.dc(ratio=ratio, n=NS, steps=2 * NT20 - 1, duration=duration(2.0, 0.5)),
         f"Fig. 20b, ratio {ratio}, {NS}^2, {2 * NT20 - 1} points")
 # Figs. 21-22's relaxation run is solved here too, beside these (one long solve alone
-# would leave a core idle).
-jobs20["relaxation"] = (P.relaxation(n=N, steps=steps(81), duration=duration(2.0, 0.5)),
-                        "Figs. 21-22, relaxation")
+# would leave a core idle). At 256^2 the joint iteration stalls at its first step (both
+# displacements imposed at once), and `jc.solve` would solve the whole history again
+# with the rounds as the fallback of every step: that solver is asked for at once
+# (only there: a larger program to compile).
+jobs20["relaxation"] = (
+    P.relaxation(n=N, steps=steps(81), duration=duration(2.0, 0.5)),
+    "Figs. 21-22, relaxation",
+    jc.Fallback(jc.JointPCG(), jc.Rounds()) if SIZE == "paper" else None)
 sols20 = solve_all(jobs20)
 for ratio in (3, 5, 10):
     sol = sols20[ratio, N, NT20]
@@ -1730,10 +1738,12 @@ verdict(
 # drop) that shrinks with the step. So we refine the step (the paper's 81 points over
 # 2 tau, then 161 and 321) for full, semi ("x") and no coupling, at the paper's rate
 # (1e3 um/s, sliding when the modulus has relaxed) and at 4e3 um/s (sliding while it
-# relaxes), and repeat the slow rate on a second grid (`NS24`: 128^2 at paper size),
-# and the refinement with the incremental slip law at both rates and under load
-# control (a tangential load ramp to mu W under the held load, instead of the
-# displacement ramp) on a third (`NSX`: 64^2 at paper size). The elastic reference:
+# relaxes): the paper's 81 points on the main grid, the refinement on `NST` (the main
+# grid below the paper size, 128^2 at it: the 256^2 rows at 161 and 321 points took
+# 600 of the run's 2131 s); the slow rate again on a second grid (`NS24`: 128^2 at
+# paper size), and the refinement with the incremental slip law at both rates and
+# under load control (a tangential load ramp to mu W under the held load, instead of
+# the displacement ramp) on a third (`NSX`: 64^2 at paper size). The elastic reference:
 # uncoupled Cattaneo-Mindlin under a tangential DISPLACEMENT gives a stick AREA ratio
 # `1 - delta_x / delta_slide`, linear to zero, with no jump; under a LOAD ramp
 # `(c / a)^2 = (1 - F_x / mu W)^(2/3)`, steep at the end but continuous.
@@ -1746,6 +1756,7 @@ COUPLINGS = ("full", "x", "none")
 # rows again on NS24 (the grid's effect), and the load control and the incremental
 # law's step refinement on NSX, coarser, to keep the paper-size run within 20 minutes.
 NS24 = N if CI else NS
+NST = NS if SIZE == "paper" else N
 NSX = N if CI else GRIDS[0]
 STEPS_X = STEP_SET[:1] if CI else STEP_SET  # the refinements on NSX
 hx = STEPS_X[-1]
@@ -1763,14 +1774,16 @@ def load_ramp_scene(coupling, n, nt, slip):
     return replace(base, x=jc.Force(MU * W * times / times[-1]))
 
 
-# (speed, coupling, slip law, time points, grid): the main grid's rows at the slow and
-# fast rates for the total law, the incremental law's first step at both rates; on
-# NS24 the total law's rows at the slow rate again; on NSX the incremental law at every
-# step and both rates, and the load-controlled ramp.
+# (speed, coupling, slip law, time points, grid): the main grid's first step at the
+# slow and fast rates for the total law, their refinement on NST, the incremental
+# law's first step at both rates; on NS24 the total law's rows at the slow rate again;
+# on NSX the incremental law at every step and both rates, and the load-controlled
+# ramp. (A row asked twice, NS24 = NST at paper size, is solved once.)
 runs24 = []
 for c in COUPLINGS:
+    runs24 += [(speed, c, "total", STEP_SET[0], N) for speed in ("slow", "fast")]
     for nt in STEP_SET:
-        runs24 += [("slow", c, "total", nt, N), ("fast", c, "total", nt, N)]
+        runs24 += [("slow", c, "total", nt, NST), ("fast", c, "total", nt, NST)]
     if c == "full" or not CI:
         runs24.append(("slow", c, "incremental", STEP_SET[0], N))
 runs24.append(("fast", "full", "incremental", STEP_SET[0], N))
@@ -1816,10 +1829,10 @@ for (speed, c, law, nt, n), s in study.items():
     if nt == STEP_SET[0] and speed == "slow" and n == N:
         ax[0].plot(dx_um, s.stick_ratio, "-" if law == "total" else ":",
                    label=f"{c}, {law}")
-    if law == "total" and c == "full" and n == N and speed != "load":
+    if law == "total" and c == "full" and n == NST and speed != "load":
         ax[1].plot(dx_um, s.stick_ratio, ".-" if speed == "slow" else "x-", ms=3,
                    label=f"{speed}, {nt} points")
-    if nt == STEP_SET[-1] and speed == "fast" and (law == "total" or n != N):
+    if nt == STEP_SET[-1] and speed == "fast":  # total law on NST, incremental on NSX
         ax[2].plot(dx_um, s.stick_ratio, label=f"{c}, {law}, {n}^2")
     if speed == "load" and nt == hx:
         ax[3].plot(s.tangential_force[:, 0] / (MU * W), s.stick_ratio, label=c)
@@ -1876,7 +1889,7 @@ finest_full = {(sp, "full", law, max(nts), n): T[sp, "full", law, max(nts), n][1
                for (sp, law, n), nts in refined.items() if len(nts) > 1}
 crit_rel = max(finest_full.values())
 abrupt = crit_rel > 0.25
-shrink = {sp: T[sp, "full", "total", hi, N][2] / T[sp, "full", "total", lo, N][2]
+shrink = {sp: T[sp, "full", "total", hi, NST][2] / T[sp, "full", "total", lo, NST][2]
           for sp in ("slow", "fast")}
 shrink_incr = {sp: T[sp, "full", "incremental", hx, NSX][2]
                / T[sp, "full", "incremental", lo, NSX][2] for sp in ("slow", "fast")}
@@ -1886,7 +1899,7 @@ verdict(
     "fully coupled, at the finest step of each refinement: the stick ratio just "
     f"before sliding over c(0), the largest over the slow ({RATES[0] * 1e6:.0f} "
     f"um/s) and fast ({FAST * 1e6:.0f} um/s) rates, both slip laws, load control and "
-    f"the grids {', '.join(f'{n}^2' for n in sorted({NSX, NS24, N}))}; the largest "
+    f"the grids {', '.join(f'{n}^2' for n in sorted({NSX, NS24, NST}))}; the largest "
     f"one-step drop, {hi} over {lo} points",
     "holds if in some fully coupled refinement the stick ratio just before sliding "
     "stays above 25 % of c(0) at the finest step (a jump that refinement does not "
@@ -1897,34 +1910,34 @@ verdict(
     + ", ".join(f"{sp} {law} {n}^2 {nt} points {v:.1%}"
                 for (sp, c, law, nt, n), v in finest_full.items())
     + f"); largest drop x{shrink['slow']:.2f} (slow), x{shrink['fast']:.2f} (fast) "
-    f"from {lo} to {hi} points (total law, {N}^2); incremental law "
+    f"from {lo} to {hi} points (total law, {NST}^2); incremental law "
     f"x{shrink_incr['slow']:.2f} (slow), x{shrink_incr['fast']:.2f} (fast) "
     f"({NSX}^2)",
     "a jump from a relatively high value to zero, unchanged by smaller steps",
     values=dict(crit_over_c0=crit_rel, shrink_slow=shrink["slow"],
-                crit_fine_slow=(T["slow", "full", "total", hi, N][1]
-                                / T["slow", "full", "total", hi, N][0]),
-                crit_fine_fast=(T["fast", "full", "total", hi, N][1]
-                                / T["fast", "full", "total", hi, N][0]),
+                crit_fine_slow=(T["slow", "full", "total", hi, NST][1]
+                                / T["slow", "full", "total", hi, NST][0]),
+                crit_fine_fast=(T["fast", "full", "total", hi, NST][1]
+                                / T["fast", "full", "total", hi, NST][0]),
                 shrink_fast=shrink["fast"], shrink_incremental_slow=shrink_incr["slow"],
                 shrink_incremental_fast=shrink_incr["fast"],
-                drop_coarse=(T["slow", "full", "total", lo, N][2]
-                             / T["slow", "full", "total", lo, N][0]),
-                drop_fine=(T["slow", "full", "total", hi, N][2]
-                           / T["slow", "full", "total", hi, N][0]),
-                ending_slow=T["slow", "full", "total", hi, N][4],
-                ending_fast=T["fast", "full", "total", hi, N][4],
-                ending_fast_semi=T["fast", "x", "total", hi, N][4],
-                ending_fast_none=T["fast", "none", "total", hi, N][4],
+                drop_coarse=(T["slow", "full", "total", lo, NST][2]
+                             / T["slow", "full", "total", lo, NST][0]),
+                drop_fine=(T["slow", "full", "total", hi, NST][2]
+                           / T["slow", "full", "total", hi, NST][0]),
+                ending_slow=T["slow", "full", "total", hi, NST][4],
+                ending_fast=T["fast", "full", "total", hi, NST][4],
+                ending_fast_semi=T["fast", "x", "total", hi, NST][4],
+                ending_fast_none=T["fast", "none", "total", hi, NST][4],
                 ending_load_full=T["load", "full", "total", hx, NSX][4],
                 ending_load_none=T["load", "none", "total", hx, NSX][4],
                 crit_incremental=T["slow", "full", "incremental", lo, N][1]),
     why="no jump in any computation: as the step is refined the last stick ratio "
     "before sliding goes to zero ("
-    + ", ".join(f"{T['slow', 'full', 'total', nt, N][1]:.4f}" for nt in STEP_SET)
+    + ", ".join(f"{T['slow', 'full', 'total', nt, NST][1]:.4f}" for nt in STEP_SET)
     + " slow; "
-    + ", ".join(f"{T['fast', 'full', 'total', nt, N][1]:.4f}" for nt in STEP_SET)
-    + f" fast, at {', '.join(map(str, STEP_SET))} points, {N}^2; with the "
+    + ", ".join(f"{T['fast', 'full', 'total', nt, NST][1]:.4f}" for nt in STEP_SET)
+    + f" fast, at {', '.join(map(str, STEP_SET))} points, {NST}^2; with the "
     "incremental law "
     + ", ".join(f"{T['fast', 'full', 'incremental', nt, NSX][1]:.4f}"
                 for nt in STEPS_X)
@@ -1933,15 +1946,15 @@ verdict(
     f"{(hi - 1) // (lo - 1)}x finer step): the stick ratio is continuous in time, for "
     "either slip law. What IS there: when gross sliding comes while the modulus "
     f"relaxes ({FAST * 1e6:.0f} um/s, sliding at "
-    f"{T['fast', 'full', 'total', hi, N][3]:.2f} tau; the load relaxes with it under "
+    f"{T['fast', 'full', 'total', hi, NST][3]:.2f} tau; the load relaxes with it under "
     "the held approach), the coupled stick ratio stays high until late and falls over "
     "the last tenth of the way: at 90 % of the sliding displacement it is still "
-    f"{T['fast', 'full', 'total', hi, N][4]:.2f} c(0) fully coupled ("
-    f"{T['fast', 'x', 'total', hi, N][4]:.2f} semi, "
-    f"{T['fast', 'none', 'total', hi, N][4]:.2f} "
+    f"{T['fast', 'full', 'total', hi, NST][4]:.2f} c(0) fully coupled ("
+    f"{T['fast', 'x', 'total', hi, NST][4]:.2f} semi, "
+    f"{T['fast', 'none', 'total', hi, NST][4]:.2f} "
     f"uncoupled; a linear decline gives 0.10), against "
-    f"{T['slow', 'full', 'total', hi, N][4]:.2f} at {RATES[0] * 1e6:.0f} um/s, "
-    f"sliding at {T['slow', 'full', 'total', hi, N][3]:.2f} tau when the material is "
+    f"{T['slow', 'full', 'total', hi, NST][4]:.2f} at {RATES[0] * 1e6:.0f} um/s, "
+    f"sliding at {T['slow', 'full', 'total', hi, NST][3]:.2f} tau when the material is "
     "steady. With a coarse step that steep end is one or two steps, and reads as a "
     "jump. Under load control (a tangential load ramp to mu W under the held load) the "
     f"end is steep for every coupling ({T['load', 'full', 'total', hx, NSX][4]:.2f} "
@@ -1953,11 +1966,12 @@ verdict(
     + "). So the abruptness is a steep but continuous end, not a discontinuity, and "
     "not specific to full coupling" if not abrupt else None,
 )
-c24b = [T["slow", "full", "total", nt, N][3] for nt in STEP_SET]
+c24b = [T["slow", "full", "total", nt, NST][3] for nt in STEP_SET]
 spread24b = (max(c24b) - min(c24b)) / min(c24b)
 verdict(
     "Fig. 24b", "smaller time steps change the partial slip solution insignificantly",
-    f"first sliding time / tau, full coupling, {', '.join(map(str, STEP_SET))} points",
+    f"first sliding time / tau, full coupling, {', '.join(map(str, STEP_SET))} points "
+    f"({NST}^2)",
     "holds if the first sliding time moves by less than 15 % across the three steps",
     spread24b < 0.15,
     ", ".join(f"{v:.3f}" for v in c24b)
@@ -2024,15 +2038,15 @@ verdict(
                 for r, v in fine25.items())
     + ") and goes to zero with the step (Fig. 24). What the rate does change is the "
     "steepness of the end (the stick ratio at 90 % of the sliding displacement over "
-    f"c(0), resolved in Fig. 24: {T['slow', 'full', 'total', hi, N][4]:.2f} at "
-    f"{RATES[0] * 1e6:.0f} um/s, {T['fast', 'full', 'total', hi, N][4]:.2f} at "
+    f"c(0), resolved in Fig. 24: {T['slow', 'full', 'total', hi, NST][4]:.2f} at "
+    f"{RATES[0] * 1e6:.0f} um/s, {T['fast', 'full', 'total', hi, NST][4]:.2f} at "
     f"{FAST * 1e6:.0f} um/s): sliding sooner, during the relaxation, ends steeper"
     if not rises_first else None,
 )
-e_slow = T["slow", "full", "total", hi, N][4]
-e_fast = T["fast", "full", "total", hi, N][4]
-e_step = max(abs(T[sp, "full", "total", hi, N][4]
-                 - T[sp, "full", "total", STEP_SET[-2], N][4])
+e_slow = T["slow", "full", "total", hi, NST][4]
+e_fast = T["fast", "full", "total", hi, NST][4]
+e_step = max(abs(T[sp, "full", "total", hi, NST][4]
+                 - T[sp, "full", "total", STEP_SET[-2], NST][4])
              for sp in ("slow", "fast"))
 verdict(
     "Fig. 25a (slow rate)", "at v = 1e3 um/s, sliding when the material is steady, "
@@ -2042,8 +2056,8 @@ verdict(
     "holds if it is lower at the slow rate by more than either changes from "
     f"{STEP_SET[-2]} to {STEP_SET[-1]} points",
     e_fast - e_slow > e_step,
-    f"{e_slow:.3f} (sliding at {T['slow', 'full', 'total', hi, N][3]:.2f} tau) vs "
-    f"{e_fast:.3f} (at {T['fast', 'full', 'total', hi, N][3]:.2f} tau); "
+    f"{e_slow:.3f} (sliding at {T['slow', 'full', 'total', hi, NST][3]:.2f} tau) vs "
+    f"{e_fast:.3f} (at {T['fast', 'full', 'total', hi, NST][3]:.2f} tau); "
     f"step change up to {e_step:.3f}",
     values=dict(ending_slow=e_slow, ending_fast=e_fast, step_change=e_step),
     why=None if e_fast - e_slow > e_step else
