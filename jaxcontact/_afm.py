@@ -32,8 +32,9 @@ Conventions:
 
   is fitted by linear least squares in `(a, b[, s])`; the contact point is the `x_c`
   with the smallest sum of squared residuals (a grid over the approach, then a finer
-  grid around the best). The 3/2 power is Hertz's for a sphere; the baseline is the
-  fitted `a (+ s x)`. It is overridable (`contact_index=`).
+  grid around the best). The 3/2 power is Hertz's for a sphere (`exponent=2`:
+  Sneddon's for a cone); the baseline is the fitted `a (+ s x)`. It is overridable
+  (`contact_index=`).
 - Segments: each afmformats segment is classified by its height travel against the
   whole curve's: down by more than 10 % -> approach, up by more than 10 % -> retract,
   otherwise hold (between an approach and a retract) or pause (before the approach or
@@ -42,9 +43,12 @@ Conventions:
   retract loses contact (force back to the baseline, or the depth back to 0), as the
   contact model has no adhesion.
 
-The probe radius is not in the files: it is an input of the fit (the scene's
-`jc.Sphere(radius)`). Relaxation times and modulus RATIOS (g_i / g_inf) do not depend
-on it; absolute moduli scale as `radius^(-1/2)` (Hertz: `F ~ G sqrt(R) delta^(3/2)`).
+The probe's shape is not in the files: it is an input of the fit (the scene's
+`jc.Sphere(radius)` or `jc.Cone(half_angle)`; `read_afm(exponent=)` the power of its
+elastic law for the contact point). Relaxation times and modulus RATIOS (g_i / g_inf)
+do not depend on it; absolute moduli scale as `radius^(-1/2)` (Hertz:
+`F ~ G sqrt(R) delta^(3/2)`) or `1 / tan(half_angle)` (Sneddon:
+`F ~ G tan(alpha) delta^2`).
 
 ??? cite "References"
 
@@ -58,7 +62,7 @@ import os
 
 import numpy as np
 
-from ._lee_radok import lee_radok_misfit
+from ._lee_radok import check_exponent, lee_radok_misfit
 
 
 SEGMENT_NAMES = ("approach", "hold", "retract")
@@ -205,35 +209,60 @@ class AFMCurve:
             contact_note=f"moved to sample {index} (from "
                          f"{self.raw['contact_index']}: {self.contact_note})")
 
-    def scene_template(self, radius, *, n=32, poisson=0.5, size_factor=4.0):
-        """A `jc.Scene` for `jc.fit_prony` on this curve: a sphere of `radius` [m], an
-        `n x n` grid `size_factor` times the largest Hertz contact radius
-        `sqrt(radius * max depth)` wide, a placeholder elastic material of Poisson's
-        ratio `poisson` (0.5: incompressible, the usual assumption for cells and
-        gels; only `G / (1 - nu)` is identifiable from indentation) and the control
-        mode of the hold (`jc.Force` for creep, `jc.Displacement` for relaxation;
-        the fit replaces the program by the data's)."""
+    def scene_template(self, radius=None, *, indenter=None, n=32, poisson=0.5,
+                       size_factor=4.0):
+        """A `jc.Scene` for `jc.fit_prony` on this curve: the probe, an `n x n` grid
+        `size_factor` times its largest elastic contact radius wide (a sphere's
+        `sqrt(R * max depth)`, a cone's `2 tan(alpha) max depth / pi`), a
+        placeholder elastic material of Poisson's ratio `poisson` (0.5:
+        incompressible, the usual assumption for cells and gels; only `G / (1 - nu)`
+        is identifiable from indentation) and the control mode of the hold
+        (`jc.Force` for creep, `jc.Displacement` for relaxation; the fit replaces the
+        program by the data's).
+
+        The probe: `radius` [m], a sphere (as before), or `indenter=`, a `jc.Sphere`
+        or a `jc.Cone` (e.g. `curve.scene_template(indenter=jc.Cone(0.35))`), used
+        as given.
+
+        **Raises:** `ValueError` for both or neither of `radius` and `indenter`, a
+        radius that is not a finite number > 0, another indenter, or a curve without
+        a positive depth."""
         import jax.numpy as jnp
 
         from ._grid import Grid
-        from ._indenter import Sphere
+        from ._indenter import Cone, Sphere
         from ._loading import Displacement, Force
         from ._material.elastic import Elastic
+        from ._probe import Probe
         from ._scene import Scene
 
-        if not (isinstance(radius, (int, float)) and np.isfinite(radius)
-                and radius > 0):
-            raise ValueError(f"radius must be a finite number > 0 [m], got {radius!r}")
-        a_max = float(np.sqrt(radius * max(float(self.depth.max()), 0.0)))
+        if (radius is None) == (indenter is None):
+            raise ValueError(
+                "scene_template needs the probe: radius [m] (a sphere) or indenter= "
+                f"(a jc.Sphere or jc.Cone), not both; got radius={radius!r}, "
+                f"indenter={indenter!r}")
+        if indenter is None:
+            if not (isinstance(radius, (int, float)) and np.isfinite(radius)
+                    and radius > 0):
+                raise ValueError(
+                    f"radius must be a finite number > 0 [m], got {radius!r}")
+            probe, indenter = Probe.sphere(radius), Sphere(radius)
+        else:
+            if not isinstance(indenter, (Sphere, Cone)):
+                raise ValueError(f"indenter must be a jc.Sphere or a jc.Cone, got "
+                                 f"{type(indenter).__name__}")
+            probe = Probe.of(indenter)
+        depth = max(float(self.depth.max()), 0.0)
+        a_max = float(probe.contact_radius(depth))
         if not a_max > 0:
             raise ValueError("the curve has no positive indentation depth")
         width = size_factor * a_max
-        # A placeholder modulus of the right order: Hertz at the largest force.
-        e_star = 3 * max(float(self.force.max()), 1e-30) / (
-            4 * np.sqrt(radius) * float(self.depth.max()) ** 1.5)
-        g = e_star * (1 - poisson) / 2
+        # A placeholder modulus of the right order: the elastic law at the largest
+        # force, F = C G d^m.
+        g = max(float(self.force.max()), 1e-30) / (
+            probe.prefactor(poisson) * depth ** probe.exponent)
         normal = Force(0.0) if self.mode == "creep" else Displacement(0.0)
-        return Scene(Grid(shape=(n, n), size=(width, width)), Sphere(radius),
+        return Scene(Grid(shape=(n, n), size=(width, width)), indenter,
                      Elastic(shear_modulus=g, poisson=poisson),
                      jnp.linspace(0.0, 1.0, 3), normal)
 
@@ -251,7 +280,8 @@ def contact_point(travel, force, *, baseline="constant", exponent=1.5, grid=200)
       increasing.
     - `force`: `(n,)` force [force].
     - `baseline`: `"constant"` or `"linear"` (a tilted baseline: virtual deflection).
-    - `exponent`: the power of the contact branch (3/2: Hertz, sphere).
+    - `exponent`: the power of the contact branch (3/2: Hertz, sphere; 2: Sneddon,
+      cone).
     - `grid`: number of candidate contact points per pass (two passes: the whole
       approach, then between the best candidate's neighbours).
 
@@ -307,7 +337,7 @@ def contact_point(travel, force, *, baseline="constant", exponent=1.5, grid=200)
     return x0 + uc * xs, np.asarray(out)
 
 
-def _refine_contact(time, f_rel, height, code, ic, k, mode, *,
+def _refine_contact(time, f_rel, height, code, ic, k, mode, *, exponent=1.5,
                     max_candidates=60, max_hold=1000):
     """`(index, offset, note)`: the contact sample near `ic` that minimises
     `lee_radok_misfit` (2 arms) of the curve zeroed there, and the force above the
@@ -332,7 +362,8 @@ def _refine_contact(time, f_rel, height, code, ic, k, mode, *,
         f = f_rel[idx] - f_rel[j]
         d = (height[j] - height[idx]) - f / k
         value = lee_radok_misfit(time[idx] - time[j], f, d, mode, arms=2,
-                                 start=int(np.sum(app[app >= j] < candidates[-1])))
+                                 start=int(np.sum(app[app >= j] < candidates[-1])),
+                                 exponent=exponent)
         if value < best_value:
             best, best_value = int(j), value
     if best in (candidates[0], candidates[-1]) and best != ic:
@@ -389,7 +420,8 @@ def _column(curve, names):
 
 
 def read_afm(source, *, index=0, contact_index=None, baseline="constant",
-             segments=SEGMENT_NAMES, mode=None, contact="piecewise") -> AFMCurve:
+             segments=SEGMENT_NAMES, mode=None, contact="piecewise",
+             exponent=1.5) -> AFMCurve:
     """Read one force-distance curve from an AFM file into an `AFMCurve`.
 
     **Arguments:**
@@ -420,13 +452,18 @@ def read_afm(source, *, index=0, contact_index=None, baseline="constant",
           force creeping up before the Hertz law holds) the elastic piecewise fit puts
           the contact where the force is already above its baseline, and a model that
           starts unloaded cannot follow (see `benchmarks/notes/fit_real_files.md`).
+    - `exponent`: the power `m` of the probe's elastic law `F ~ depth^m` that both
+      contact-point methods assume: 1.5 (default) a sphere (Hertz), 2 a cone
+      (Sneddon); `jc.AFMFitSettings(...).probe.exponent` is the tip's.
 
     **Returns:** an `AFMCurve` (SI units: s, N, m).
 
     **Raises:** `ValueError` for a file without time, height, or force/deflection
     columns, without a spring constant when one is needed, without an approach
-    segment, or without a contact; `ImportError` without afmformats.
+    segment, or without a contact, or an `exponent` that is not a number > 0;
+    `ImportError` without afmformats.
     """
+    exponent = check_exponent(exponent)
     # -- Initial set-up ----------------------------------------------------------------
     path = None
     if isinstance(source, (str, os.PathLike)):
@@ -493,11 +530,13 @@ def read_afm(source, *, index=0, contact_index=None, baseline="constant",
     if before and names[before[-1]] == "pause":
         app = np.concatenate([np.flatnonzero(seg_ids == before[-1]), app])
     # The fit runs in the TIP's travel (base travel minus the deflection F / k), where
-    # the 3/2 law holds; in the base's travel a stiff sample bends it (a 40 nm early
-    # contact on the synthetic curve of tests/test_afm.py, 5 % deflection).
+    # the 3/2 (sphere) or 2 (cone) law holds; in the base's travel a stiff sample
+    # bends it (a 40 nm early contact on the synthetic curve of tests/test_afm.py, 5 %
+    # deflection).
     travel = height[app[0]] - height[app] - (force[app] - force[app[0]]) / k
     if contact_index is None:
-        xc, coef = contact_point(travel, force[app], baseline=baseline)
+        xc, coef = contact_point(travel, force[app], baseline=baseline,
+                                 exponent=exponent)
         ic = app[min(int(np.argmax(travel >= xc)) if (travel >= xc).any() else app.size,
                      app.size - 1)]
         # On the approach proper: the tip's travel fluctuates about 0 in a pause
@@ -552,12 +591,13 @@ def read_afm(source, *, index=0, contact_index=None, baseline="constant",
         raise ValueError(f"contact must be 'piecewise' or 'viscoelastic', got "
                          f"{contact!r}")
     offset = 0.0  # force above the baseline at contact, removed ("viscoelastic")
+    law = {1.5: "Hertz", 2.0: "Sneddon (cone)"}.get(exponent, f"d^{exponent:g}")
     contact_note = ("given (contact_index)" if contact_index is not None else
-                    "piecewise baseline + Hertz fit (Lin et al. 2007)")
+                    f"piecewise baseline + {law} fit (Lin et al. 2007)")
     piecewise_ic = ic
     if contact == "viscoelastic" and contact_index is None:
         ic, offset, contact_note = _refine_contact(
-            time, force - f_base, height, code, ic, k, mode)
+            time, force - f_base, height, code, ic, k, mode, exponent=exponent)
     keep_codes = tuple(SEGMENT_NAMES.index(s) for s in segments)
     raw = {"time": time, "force": force, "height": height, "segment": code,
            "force_above_baseline": force - f_base, "kept_codes": keep_codes,

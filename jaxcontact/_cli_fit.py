@@ -1,6 +1,8 @@
-"""`jaxcontact fit FILE|FOLDER... --radius R`: Prony series fitted to AFM files.
+"""`jaxcontact fit FILE|FOLDER... --radius R` (a sphere) or `... --tip cone
+--half-angle DEG` (a cone): Prony series fitted to AFM files.
 
-    jaxcontact fit FILE|FOLDER... --radius R [--arms N|auto] [--out DIR] [--n N]
+    jaxcontact fit FILE|FOLDER... (--radius R | --tip cone --half-angle DEG)
+                   [--arms N|auto] [--out DIR] [--n N]
                    [--poisson NU] [--baseline constant|linear] [--samples A,H,R]
                    [--segments approach,hold,retract] [--steps K]
                    [--contact viscoelastic|piecewise] [--start lee-radok|data]
@@ -11,7 +13,9 @@
 Each file (a folder: every file in it that afmformats reads) is read by `jc.read_afm`
 (afmformats: `pip install "jaxcontact[afm]"`) and fitted by
 `jaxcontact.fitting.afm.fit_afm_curve`: the segments binned, `jc.fit_prony` through
-the full contact model (a sphere of radius `R` [m]; by default on `K` coaxial rings,
+the full contact model (a sphere of radius `R` [m], or with `--tip cone` a sharp cone
+of half-angle `DEG` degrees, the angle between its axis and its flank; by default on
+`K` coaxial rings,
 `solve_axisymmetric`, `--solver grid`: on an `N x N` grid) for 1 to 3 arms
 (`--arms auto`, the converged fit with no parameter at a bound and the smallest BIC),
 the quality judged against the raw data's own noise, and the uncertainty extended by
@@ -22,9 +26,11 @@ under the measured force; relaxation files (height clamp) the force under the de
 
 Writes `DIR/STEM_fit.json` (Young's moduli `E = 2 G (1 + nu)` and shear moduli with
 their total standard deviation and its components, `E(t)` at the approach's duration,
-the apparent Hertz modulus of the approach, the quality verdict and flags, the contact
-point as time, height and force, units) and `DIR/STEM_fit.png` (data, model,
-residuals, `E(t)`); with several files also `DIR/fit_summary.csv` (a row a file).
+the apparent elastic modulus of the approach (Hertz for a sphere, Sneddon for a
+cone; the JSON's `apparent_hertz` for both, its `law` says which), the probe (`tip`),
+the quality verdict and flags, the contact point as time, height and force, units)
+and `DIR/STEM_fit.png` (data, model, residuals, `E(t)`); with several files also
+`DIR/fit_summary.csv` (a row a file).
 `STEM` is the file's name minus its final extension (`gel.001.jpk-force` ->
 `gel.001`); outputs already in `DIR` are refused before any fit unless
 `--overwrite`, and so are two files with the same stem.
@@ -51,9 +57,13 @@ Compiled programs are cached on disk (`jc.enable_compilation_cache`: folder
 `JAXCONTACT_NO_CACHE=1`: none), so a second run of the same sizes skips most of the
 compilation.
 
-The probe radius is not in the files: absolute moduli scale as `R^(-1/2)`; relaxation
-times and modulus ratios do not depend on it. A radius outside `RADIUS_WINDOW` times the
-curve's maximum indentation depth warns (`radius_warning`: most likely a unit slip).
+The probe is not in the files: absolute moduli scale as `R^(-1/2)` (a sphere) or
+`1 / tan(alpha)` (a cone); relaxation times and modulus ratios do not depend on it.
+Every closed-form piece (the contact point, the Lee & Radok start, the apparent
+modulus) follows the tip's law, Hertz's `d^(3/2)` or Sneddon's `d^2`. A radius outside
+`RADIUS_WINDOW` times the curve's maximum indentation depth warns (`radius_warning`:
+most likely a unit slip), and so does a half-angle under 1 degree
+(`half_angle_warning`: most likely radians given for degrees).
 """
 
 import argparse
@@ -70,7 +80,12 @@ from ._cache import (
     enable_compilation_cache,
 )
 from ._cli_output import InputError, prepare_out
-from .fitting.afm import RADIUS_NOTE, RADIUS_WINDOW, radius_warning  # noqa: F401
+from .fitting.afm import (  # noqa: F401
+    RADIUS_NOTE,
+    RADIUS_WINDOW,
+    half_angle_warning,
+    radius_warning,
+)
 
 
 SUMMARY = "fit_summary.csv"
@@ -147,8 +162,15 @@ def add_parser(sub):
     p.add_argument("files", nargs="+", metavar="FILE",
                    help="force-distance files afmformats reads (e.g. .jpk-force), or "
                         "folders of them")
-    p.add_argument("--radius", type=float, required=True,
-                   help="probe (sphere) radius [m]")
+    p.add_argument("--radius", type=float, default=None,
+                   help="the sphere's radius [m] (required with --tip sphere, the "
+                        "default)")
+    p.add_argument("--tip", default="sphere", choices=("sphere", "cone"),
+                   help="the probe: 'sphere' (default; Hertz, --radius) or 'cone' (a "
+                        "sharp cone, Sneddon; --half-angle)")
+    p.add_argument("--half-angle", type=float, default=None, metavar="DEG",
+                   help="the cone's half-angle in DEGREES, the angle between its "
+                        "axis and its flank (required with --tip cone; e.g. 20)")
     p.add_argument("--arms", default="auto",
                    help="number of Prony arms (1..8), or 'auto' (default: 1..3, the "
                         "converged fit with no parameter at a bound and the smallest "
@@ -161,7 +183,7 @@ def add_parser(sub):
                    help="grid cells per side with --solver grid (default 32)")
     p.add_argument("--solver", default="auto", choices=("auto", "rings", "grid"),
                    help="the contact model: 'auto' (default) and 'rings' solve the "
-                        "sphere on coaxial rings (solve_axisymmetric: the same "
+                        "sphere or cone on coaxial rings (solve_axisymmetric: the same "
                         "accuracy as the grid in a small fraction of its time); "
                         "'grid' on an N x N grid")
     p.add_argument("--rings", type=int, default=64,
@@ -176,9 +198,10 @@ def add_parser(sub):
                         "from apparent moduli")
     p.add_argument("--contact", default="viscoelastic",
                    choices=("viscoelastic", "piecewise"),
-                   help="contact point: the piecewise baseline + Hertz fit refined by "
-                        "the closed-form viscoelastic model (default), or the "
-                        "piecewise fit alone (jc.read_afm's contact=)")
+                   help="contact point: the piecewise baseline + Hertz (sphere) or "
+                        "Sneddon (cone) fit refined by the closed-form viscoelastic "
+                        "model (default), or the piecewise fit alone (jc.read_afm's "
+                        "contact=)")
     p.add_argument("--check-grid", action=argparse.BooleanOptionalAction, default=True,
                    help="also solve the fitted model at twice the resolution (twice "
                         "the rings, or a grid twice as fine) and report the "
@@ -202,13 +225,37 @@ def add_parser(sub):
     return p
 
 
+def _check_tip(args):
+    """The probe's options: `--radius` for a sphere, `--half-angle` (degrees) for a
+    cone, each refused with the other tip; `InputError` naming the option."""
+    if args.tip == "sphere":
+        if args.half_angle is not None:
+            raise _BadInput(f"--half-angle {args.half_angle:g} is a cone's: give --tip "
+                            "cone (without --radius), or leave --half-angle out")
+        if args.radius is None:
+            raise _BadInput("--radius is required for a spherical probe (--tip "
+                            "sphere, the default): the sphere's radius [m]; a conical "
+                            "probe: --tip cone --half-angle DEG")
+        if not math.isfinite(args.radius):
+            raise _BadInput("--radius must be a finite number > 0 [m], got "
+                            f"{args.radius!r}")
+        if args.radius <= 0:
+            raise _BadInput(f"--radius must be a finite number > 0 [m]: the probe "
+                            f"radius must be positive, got {args.radius!r}")
+        return
+    if args.radius is not None:
+        raise _BadInput(f"--radius {args.radius:g} is a sphere's: a cone (--tip cone) "
+                        "takes --half-angle DEG only")
+    if args.half_angle is None:
+        raise _BadInput("--tip cone needs --half-angle DEG: the cone's half-angle in "
+                        "degrees, the angle between its axis and its flank")
+    if not (math.isfinite(args.half_angle) and 0 < args.half_angle < 90):
+        raise _BadInput(f"--half-angle must be in (0, 90) degrees (the angle between "
+                        f"the cone's axis and its flank), got {args.half_angle!r}")
+
+
 def _check(args):
-    if not math.isfinite(args.radius):
-        raise _BadInput("--radius must be a finite number > 0 [m], got "
-                        f"{args.radius!r}")
-    if args.radius <= 0:
-        raise _BadInput(f"--radius must be a finite number > 0 [m]: the probe radius "
-                        f"must be positive, got {args.radius!r}")
+    _check_tip(args)
     if args.arms != "auto":
         try:
             arms = int(args.arms)
@@ -258,8 +305,11 @@ def _check(args):
 def _settings(args, samples, segments):
     from .fitting.afm import AFMFitSettings
 
+    cone = args.tip == "cone"
     return AFMFitSettings(
-        radius=args.radius, arms=args.arms if args.arms == "auto" else int(args.arms),
+        radius=None if cone else args.radius, tip=args.tip,
+        half_angle=math.radians(args.half_angle) if cone else None,
+        arms=args.arms if args.arms == "auto" else int(args.arms),
         n=args.n, poisson=args.poisson, samples=tuple(samples),
         segments=tuple(segments), tau_bounds=args.tau_bounds, start=args.start,
         steps=args.steps, check_grid=args.check_grid,
@@ -273,15 +323,16 @@ def _fit_one(path, args, samples, segments):
     import jaxcontact as jc
     from jaxcontact.fitting.afm import fit_afm_curve
 
+    settings = _settings(args, samples, segments)
     try:
         curve = jc.read_afm(path, baseline=args.baseline, segments=segments,
-                            contact=args.contact)
+                            contact=args.contact, exponent=settings.probe.exponent)
     except (ValueError, TypeError) as exc:
         raise _BadInput(f"{path}: {exc}") from exc
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", UserWarning)
         try:
-            result = fit_afm_curve(curve, _settings(args, samples, segments))
+            result = fit_afm_curve(curve, settings)
         except ValueError as exc:
             raise _BadInput(f"{path}: {exc}") from exc
     for w in caught:  # re-issued with the file's name (one line each, by `main`)
@@ -324,13 +375,14 @@ def _plot(fit, seg, result, path):
     top.set_ylabel(f"{fit.kind} [{unit}]")
     q = result["quality"]
     top.set_title(f"{Path(result['file']).name}: {result['arms']} arm(s), "
-                  f"R = {result['radius_m']:g} m; quality: {q['verdict']}", fontsize=9)
+                  f"{tip_text(result['tip'])}; quality: {q['verdict']}", fontsize=9)
     top.legend(fontsize=8)
     middle.axhline(0, color="k", lw=0.5)
     middle.set_ylabel(f"residual [{unit}]")
     middle.set_xlabel("time since contact [s]")
     # E(t) = 2 (1 + nu) G(t): the fitted relaxation function, with the moduli AFM
-    # users compare (the apparent Hertz modulus of the approach, E at its duration).
+    # users compare (the apparent Hertz or Sneddon modulus of the approach, E at its
+    # duration).
     e = result["youngs_moduli"]
     factor = 2 * (1 + result["poisson"])
     span = max(float(fit.times[-1]), 1e-9)
@@ -338,7 +390,7 @@ def _plot(fit, seg, result, path):
     curve = [factor * relaxation_modulus(fit.material, v) for v in t]
     bottom.semilogx(t, curve, "k-", lw=1, label="E(t) = 2 (1 + nu) G(t)")
     bottom.axhline(result["apparent_hertz"]["E_Pa"], color="C3", ls="--", lw=1,
-                   label="apparent Hertz E (approach)")
+                   label=f"apparent {_law(result)} E (approach)")
     bottom.plot([e["approach_time_s"]], [e["E_at_approach_Pa"]["value"]], "o",
                 color="C0", label="E at the approach's duration")
     bottom.set_xlabel("t [s]")
@@ -391,7 +443,8 @@ def run_fit(args) -> int:
             if result["flags"]:
                 status = 1
         if len(rows) > 1:
-            _write_summary(rows, out / SUMMARY)
+            _write_summary(rows, out / SUMMARY,
+                           "Sneddon" if args.tip == "cone" else "Hertz")
         return status
     except InputError as exc:
         print(f"jaxcontact: error: {exc}", file=sys.stderr)
@@ -419,14 +472,14 @@ def summary_row(r) -> dict:
     }
 
 
-def _write_summary(rows, path):
+def _write_summary(rows, path, law="Hertz"):
     with open(path, "w", newline="") as fh:
         writer = csv.DictWriter(fh, fieldnames=SUMMARY_COLUMNS)
         writer.writeheader()
         writer.writerows(rows)
     print(f"{len(rows)} files: summary -> {path}")
     print(f"  {'file':<44} {'quality':<18} {'E_0':>9} {'E(T_app)':>9} {'E_inf':>9} "
-          f"{'Hertz E':>9}  flags")
+          f"{law + ' E':>9}  flags")
     for row in rows:
         print(f"  {Path(row['file']).name[:44]:<44} {row['quality']:<18} "
               f"{row['E_0_Pa']:>9.4g} {row['E_at_approach_Pa']:>9.4g} "
@@ -437,6 +490,20 @@ def _write_summary(rows, path):
 def _fmt(e):
     return (f"{e['value']:.4g} +- {e['std']:.2g}" if e["std"] is not None
             else f"{e['value']:.4g} +- inf")
+
+
+def tip_text(tip) -> str:
+    """The probe of a report's `tip` (or a map's attributes: `tip`, `radius_m` or
+    `half_angle_rad`) in a few words: `R = 5e-06 m` or `cone 20 deg`."""
+    shape = tip.get("shape", tip.get("tip", "sphere"))
+    if shape == "sphere":
+        return f"R = {tip['radius_m']:g} m"
+    return f"cone {math.degrees(tip['half_angle_rad']):.4g} deg"
+
+
+def _law(r) -> str:
+    """`Hertz` or `Sneddon`: the apparent modulus's law of a report."""
+    return r["apparent_hertz"].get("law", "Hertz")
 
 
 def _model_text(r) -> str:
@@ -460,7 +527,7 @@ def _print(r, json_path):
           "std (optimiser" + (", contact point, grid" if r["uncertainty"] else "")
           + ")")
     print(f"  E at the approach's duration ({e['approach_time_s']:.3g} s) = "
-          f"{_fmt(e['E_at_approach_Pa'])} Pa   apparent Hertz E (approach) = "
+          f"{_fmt(e['E_at_approach_Pa'])} Pa   apparent {_law(r)} E (approach) = "
           f"{r['apparent_hertz']['E_Pa']:.4g} Pa")
     print(f"  E_inf = {_fmt(e['E_inf_Pa'])} Pa   E_0 = {_fmt(e['E_0_Pa'])} Pa")
     for i, (g, tau, y) in enumerate(zip(p["g_Pa"], p["tau_s"], e["E_Pa"], strict=True),
@@ -488,7 +555,7 @@ def _print(r, json_path):
             print(f"    - {text}")
     else:
         print("  nothing flagged")
-    print(f"  note: {RADIUS_NOTE}")
+    print(f"  note: {r['tip_note']}")
     print(f"  -> {json_path}" + (f", {r['plot']}" if r["plot"] else ""))
 
 
@@ -561,8 +628,9 @@ def _fit_map(path, args, samples, segments, out, stem, count) -> int:
 
     print(f"{path}: {count} curves, a force map (jc.fit_force_map; a line a curve "
           "on stderr)", flush=True)
+    settings = _settings(args, samples, segments)
     try:
-        ds = jc.fit_force_map(path, settings=_settings(args, samples, segments),
+        ds = jc.fit_force_map(path, settings=settings,
                               baseline=args.baseline, contact=args.contact)
     except ValueError as exc:
         raise _BadInput(f"{path}: {exc}") from exc
@@ -588,7 +656,7 @@ def _fit_map(path, args, samples, segments, out, stem, count) -> int:
     else:
         written.append(str(png))
     _print_map(ds, rows)
-    print(f"  note: {RADIUS_NOTE}")
+    print(f"  note: {settings.probe.scaling_note()}")
     print("  -> " + ", ".join(written))
     return 1 if any(r["flags"] for r in rows) else 0
 
@@ -601,10 +669,13 @@ def _print_map(ds, rows):
     print(f"  force map: {len(rows)} curves on a {ds.sizes['y']} x {ds.sizes['x']} "
           f"grid (grid indices y {int(ds.y.min())}..{int(ds.y.max())}, x "
           f"{int(ds.x.min())}..{int(ds.x.max())}), {a['curve_mode']}, segments "
-          f"{a['segments']}, grid {a['n']}^2, R = {a['radius_m']:g} m, nu = "
+          f"{a['segments']}, grid {a['n']}^2, {tip_text(a)}, nu = "
           f"{a['poisson']:g}")
     for key, label in (("E_at_approach", "E at the approach's duration"),
-                       ("E_inf", "E_inf"), ("apparent_hertz_E", "apparent Hertz E")):
+                       ("E_inf", "E_inf"),
+                       ("apparent_hertz_E", "apparent "
+                        + ("Hertz" if a.get("tip", "sphere") == "sphere"
+                           else "Sneddon") + " E")):
         v = np.asarray(ds[key].values, float)
         v = v[np.isfinite(v)]
         if v.size:
@@ -662,7 +733,7 @@ def _plot_map(ds, path, title):
         ax.set_ylabel("grid index y")
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.yaxis.set_major_locator(MaxNLocator(integer=True))
-    fig.suptitle(f"{title}: R = {ds.attrs['radius_m']:g} m, nu = "
+    fig.suptitle(f"{title}: {tip_text(ds.attrs)}, nu = "
                  f"{ds.attrs['poisson']:g}, {ds.attrs['curve_mode']}", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=100)

@@ -38,8 +38,9 @@ _SCALARS = {
     "E_0": ("Pa", "Young's modulus at t = 0 (instantaneous), E = 2 G (1 + nu)"),
     "E_at_approach": ("Pa", "Young's modulus E(T) at the approach's duration T"),
     "E_inf": ("Pa", "Young's modulus at t -> infinity (relaxed)"),
-    "apparent_hertz_E": ("Pa", "Hertz (sphere) fit of the approach's raw samples in "
-                               "contact, E = E* (1 - nu^2)"),
+    "apparent_hertz_E": ("Pa", "elastic fit of the approach's raw samples in contact "
+                               "(Hertz for a sphere, Sneddon for a cone), "
+                               "E = E* (1 - nu^2)"),
     "g_inf": ("Pa", "shear modulus at t -> infinity"),
     "approach_time": ("s", "the approach's duration T (from the contact point)"),
     "contact_time": ("s", "the contact point's time on the file's clock"),
@@ -169,7 +170,9 @@ def _progress_line(k, n, ix, iy, result) -> str:
 
 def _settings_attrs(settings, baseline, contact) -> dict:
     s = dataclasses.asdict(settings)
-    return {"radius_m": float(settings.radius), "poisson": float(settings.poisson),
+    # netCDF attributes hold no None: the tip's own parameters only
+    tip = {k: v for k, v in settings.probe.parameters().items() if k != "shape"}
+    return {"tip": settings.tip, **tip, "poisson": float(settings.poisson),
             "n": int(settings.n), "arms": str(settings.arms),
             "samples": np.asarray(settings.samples, np.int64),
             "segments": ",".join(settings.segments),
@@ -195,12 +198,14 @@ def fit_force_map(source, radius=None, *, settings=None, client=None,
       objects (e.g. `afmformats.load_data(path)`).
     - `radius`: the probe (sphere) radius [m]; absolute moduli scale as
       `radius^(-1/2)`, relaxation times and modulus ratios do not depend on it. May
-      be left out when `settings` gives it.
+      be left out when `settings` gives it (and must be, for a cone).
     - `settings`: a `jc.AFMFitSettings` (default `AFMFitSettings(radius=radius)`:
-      the command line's defaults), shared by every curve. Its `segments` must suit
-      the file: the default `("approach", "hold")` fits a force-distance curve's
-      approach alone (it has no hold); `("approach", "retract")` adds the unloading
-      up to the loss of contact.
+      the command line's defaults), shared by every curve; a conical probe:
+      `AFMFitSettings(tip="cone", half_angle=...)` (radians; moduli scale as
+      `1 / tan(half_angle)`), whose exponent (2) the contact points use too. Its
+      `segments` must suit the file: the default `("approach", "hold")` fits a
+      force-distance curve's approach alone (it has no hold); `("approach",
+      "retract")` adds the unloading up to the loss of contact.
 
     **Other arguments:**
 
@@ -235,7 +240,8 @@ def fit_force_map(source, radius=None, *, settings=None, client=None,
       `position_x`, `position_y` [m] (the stage positions the file records, NaN
       where absent); `seconds` [s]: each fit's wall time.
 
-    Missing numbers are NaN. Attributes: the settings (`radius_m`, `poisson`, `n`,
+    Missing numbers are NaN. Attributes: the settings (`tip`, then `radius_m` for a
+    sphere or `half_angle_rad` and `half_angle_deg` for a cone, `poisson`, `n`,
     `arms`, `samples`, `segments`, `tau_bounds`, ..., `baseline`, `contact`,
     `settings_json`), `curve_mode` (creep or relaxation; not `mode`, which scipy's
     netCDF writer reserves), `source`, `curves` (the number of curves), `fitted`,
@@ -244,8 +250,8 @@ def fit_force_map(source, radius=None, *, settings=None, client=None,
     **Raises:** `ValueError` for a file afmformats cannot read or without curves,
     curves of different modes (creep and relaxation), two curves at one grid
     position, no curve that `jc.read_afm` can read (the first reason named), or
-    `radius` disagreeing with `settings.radius`; `ImportError` without afmformats /
-    xarray (or dask with `client`).
+    `radius` disagreeing with `settings.radius` (or given with a cone's settings);
+    `ImportError` without afmformats / xarray (or dask with `client`).
     """
     import xarray as xr
 
@@ -254,11 +260,16 @@ def fit_force_map(source, radius=None, *, settings=None, client=None,
     # -- Settings ----------------------------------------------------------------------
     if settings is None:
         if radius is None:
-            raise ValueError("fit_force_map: give radius [m] or settings")
+            raise ValueError("fit_force_map: give radius [m] (a sphere) or settings "
+                             "(a cone: AFMFitSettings(tip='cone', half_angle=...))")
         settings = AFMFitSettings(radius=radius)
     elif not isinstance(settings, AFMFitSettings):
         raise TypeError(f"fit_force_map: settings must be a jc.AFMFitSettings, got "
                         f"{type(settings).__name__}")
+    elif radius is not None and settings.tip != "sphere":
+        raise ValueError(f"fit_force_map: radius={radius!r} is a sphere's, but the "
+                         f"settings describe a {settings.probe.text()}: leave radius "
+                         "out")
     elif radius is not None and float(radius) != float(settings.radius):
         raise ValueError(f"fit_force_map: radius={radius!r} disagrees with "
                          f"settings.radius={settings.radius!r}")
@@ -283,7 +294,8 @@ def fit_force_map(source, radius=None, *, settings=None, client=None,
     for k, c in enumerate(raw):
         try:
             curves.append(read_afm(c, contact=contact, baseline=baseline,
-                                   segments=settings.segments))
+                                   segments=settings.segments,
+                                   exponent=settings.probe.exponent))
         except ValueError as exc:  # no contact, no approach: this curve only
             curves.append(None)
             read_errors[k] = f"jc.read_afm: {exc}"

@@ -1,6 +1,7 @@
-"""The closed-form Lee-Radok fit of a loading-and-hold indentation curve (a sphere):
-the start of `jc.fit_prony(init="lee-radok")` and the viscoelastic contact point of
-`jc.read_afm`. Plain NumPy; no contact solve."""
+"""The closed-form Lee-Radok fit of a loading-and-hold indentation curve (a probe of
+the power law `F = C G d^m`: a sphere, `m = 3/2`, or a cone, `m = 2`;
+`jaxcontact._probe`): the start of `jc.fit_prony(init="lee-radok")` and the
+viscoelastic contact point of `jc.read_afm`. Plain NumPy; no contact solve."""
 
 import itertools
 
@@ -27,36 +28,54 @@ def lee_radok_columns(t, drive, taus):
     return np.concatenate([drive[:, None], h], axis=1)
 
 
+def check_exponent(exponent) -> float:
+    """`exponent` (the `m` of `F ~ d^m`) as a float, or a `ValueError` naming it: a
+    finite number > 0 (3/2 a sphere, 2 a cone)."""
+    if isinstance(exponent, bool) or not isinstance(
+            exponent, (int, float, np.integer, np.floating)) or not (
+            np.isfinite(exponent) and exponent > 0):
+        raise ValueError(f"exponent must be a finite number > 0 (1.5: a sphere, 2: a "
+                         f"cone), got {exponent!r}")
+    return float(exponent)
+
+
 def lee_radok_fit(time, force, depth, mode, *, arms=2, n_tau=20, start=0, weights=None,
-                  positive=False):
+                  positive=False, exponent=1.5):
     """The best closed-form Lee-Radok model of a loading-and-hold curve, with `arms`
     relaxation (creep) times on a log grid of `n_tau` times between the smallest
     sample step (at least 1e-3 of the span) and the span.
 
-    Valid while the contact radius does not shrink (loading and hold). For a sphere,
-    with `u = depth^(3/2)`:
+    Valid while the contact radius does not shrink (loading and hold). For a probe
+    of the law `F = C G d^m` (`exponent` `m`: 3/2 a sphere, 2 a cone), with
+    `u = depth^m`:
 
     - relaxation (depth imposed): `F(t) = int_0^t G_app(t - s) du(s)`,
       `G_app = c_0 + sum_i c_i exp(-t / tau_i)`;
     - creep (force imposed): `u(t) = int_0^t J_app(t - s) dF(s)`,
       `J_app = c_0 + sum_i c_i (1 - exp(-t / tau_i))`.
 
-    Both are linear in the `c` (apparent moduli or compliances: `G_app = 8 sqrt(R)
-    G / (3 (1 - nu))`, `J_app = 3 (1 - nu) J / (8 sqrt(R))`), so each set of times
-    costs one small linear least squares (normal equations from one Gram matrix).
+    Both are linear in the `c` (apparent moduli or compliances: `G_app = C G`,
+    `J_app = J / C`, with `C = 8 sqrt(R) / (3 (1 - nu))` for a sphere of radius `R`,
+    `4 tan(alpha) / (pi (1 - nu))` for a cone of half-angle `alpha`:
+    `jaxcontact._probe.Probe.prefactor`), so each set of times costs one small
+    linear least squares (normal equations from one Gram matrix).
 
     **Arguments:** `time`, `force`, `depth`: `(n,)`, zero at the contact; `mode`:
     `"relaxation"` or `"creep"`; `start`: the residual counts from this sample on
     (the model runs from the first); `weights`: `(n,)` sample weights (default 1);
-    `positive`: only sets of times whose `c` are all > 0 (a valid series).
+    `positive`: only sets of times whose `c` are all > 0 (a valid series);
+    `exponent`: `m` (default 1.5, a sphere).
 
     **Returns:** `(misfit, taus, c)`: the relative weighted misfit
     `mean((w (model - target))^2) / mean((w target)^2)` over the counted samples, the
     `(arms,)` times and the `(arms + 1,)` coefficients `c_0, c_1..` (`inf`, `None`,
     `None` when no set qualifies).
+
+    **Raises:** `ValueError` for an `exponent` that is not a finite number > 0.
     """
+    exponent = check_exponent(exponent)
     t = np.asarray(time, float)
-    u = np.clip(np.asarray(depth, float), 0.0, None) ** 1.5
+    u = np.clip(np.asarray(depth, float), 0.0, None) ** exponent
     f = np.asarray(force, float)
     span, first = float(t[-1] - t[0]), float(np.min(np.diff(t)))
     taus = np.geomspace(max(first, 1e-3 * span), span, n_tau)
@@ -102,8 +121,10 @@ def _solve_or_nan(m, v):
         return np.full(v.shape, np.nan)
 
 
-def lee_radok_misfit(time, force, depth, mode, *, arms=2, n_tau=20, start=0):
-    """The relative misfit of `lee_radok_fit` (any sign of the coefficients): the
-    contact point's objective in `read_afm(..., contact="viscoelastic")`."""
+def lee_radok_misfit(time, force, depth, mode, *, arms=2, n_tau=20, start=0,
+                     exponent=1.5):
+    """The relative misfit of `lee_radok_fit` (any sign of the coefficients; the
+    probe's `exponent`, default 1.5: a sphere): the contact point's objective in
+    `read_afm(..., contact="viscoelastic")`."""
     return lee_radok_fit(time, force, depth, mode, arms=arms, n_tau=n_tau,
-                         start=start)[0]
+                         start=start, exponent=exponent)[0]

@@ -19,7 +19,7 @@ LAYERS = [
     "_grid", "_influence", "_operator", "_ring_operator",
     "_material", "_material.base", "_material.checks", "_material.prony",
     "_material.elastic", "_material.maxwell", "_material.zener",
-    "_indenter", "_loading", "_history", "_analytic", "_scene",
+    "_indenter", "_probe", "_loading", "_history", "_analytic", "_scene",
     "_dataset", "_solution", "_solver", "_solve_normal", "_subsurface",
     "_solve_rings", "_solve", "_surface", "_sweep_dask", "_sweep",
     "fitting.options", "fitting.parametrisation", "fitting.result", "fitting.data",

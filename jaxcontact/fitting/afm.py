@@ -18,8 +18,17 @@ The pipeline, shared by the command line and `jc.fit_force_map`:
    the parameter shifts to the optimiser's Gauss-Newton standard deviations
    (`fitting.uncertainty`).
 
-Units: SI throughout (s, N, m, Pa). Moduli are reported as shear moduli `g` and as
-Young's moduli `E = 2 g (1 + nu)` at the given Poisson's ratio.
+The probe (`AFMFitSettings.tip`): a sphere of radius `R` (the default) or a sharp cone
+of half-angle `alpha`; every closed-form piece follows its elastic law `F = C G d^m`
+(`jaxcontact._probe`: Hertz, `m = 3/2`; Sneddon, `m = 2`): the contact point
+(`jc.read_afm(exponent=)`), the Lee & Radok start, the apparent modulus, the contact
+point's noise depth, the closed-form floor of the verdict and the template's grid.
+The contact model itself is the scene's `jc.Sphere` or `jc.Cone`, on rings by
+default.
+
+Units: SI throughout (s, N, m, Pa; the cone's half-angle in radians). Moduli are
+reported as shear moduli `g` and as Young's moduli `E = 2 g (1 + nu)` at the given
+Poisson's ratio.
 """
 
 import dataclasses
@@ -28,6 +37,7 @@ import warnings
 
 import numpy as np
 
+from .._probe import SPHERE_NOTE, TIPS, Probe
 from .data import IndentationData
 from .fit import fit_prony
 from .options import SOLVERS, FitOptions
@@ -51,19 +61,27 @@ MAX_AUTO_ARMS = 3  # `arms="auto"` tries 1..3 (4 arms were never resolved on rea
 # radius (um or nm read as m) is a factor 1e3-1e9, far outside.
 RADIUS_WINDOW = (1e-2, 1e3)
 
-RADIUS_NOTE = ("the probe radius is an input (not in the file): absolute moduli scale "
-               "as radius^(-1/2); relaxation times and modulus ratios do not depend "
-               "on it")
+RADIUS_NOTE = SPHERE_NOTE
+
+# A cone's half-angle below this [rad] (1 degree) is sharper than any AFM probe (AFM
+# cones: about 10-45 degrees; a pyramid's equivalent cone 20-35): most likely a value
+# in radians read as degrees on the command line.
+MIN_HALF_ANGLE = math.radians(1.0)
 
 
 @dataclasses.dataclass(frozen=True)
 class AFMFitSettings:
     """How `fit_afm_curve` fits one curve (the defaults are `jaxcontact fit`'s).
 
-    - `radius`: probe (sphere) radius [m], > 0.
+    - `radius`: the sphere's radius [m], > 0 (`tip="sphere"`, the default; required
+      there, refused with a cone).
+    - `tip`: the probe, `"sphere"` (default) or `"cone"` (a sharp cone, Sneddon's).
+    - `half_angle`: the cone's half-angle [rad] in `(0, pi/2)`, the angle between
+      its axis and its flank (`tip="cone"`: required there, refused with a
+      sphere); e.g. `AFMFitSettings(tip="cone", half_angle=math.radians(20))`.
     - `arms`: number of Prony arms (1..8) or `"auto"` (1..`MAX_AUTO_ARMS`, by BIC).
     - `n`: grid cells per side of the contact model (>= 4), when it runs on the grid.
-    - `solver`: `"auto"` (default: the rings, `solve_axisymmetric`, for the sphere),
+    - `solver`: `"auto"` (default: the rings, `solve_axisymmetric`, for the probe),
       `"rings"` or `"grid"` (`jc.FitOptions.solver`).
     - `rings`: rings of the ring model (>= 4; default 64).
     - `poisson`: Poisson's ratio, fixed, in (-1, 0.5].
@@ -84,9 +102,12 @@ class AFMFitSettings:
       or a grid twice as fine): the model's discretisation bias.
     - `analysis_uncertainty`: add the contact point's and the grid's parameter shifts
       to the reported uncertainty (two or three more fits from the result).
+
+    `probe` (property): the tip as a `jaxcontact._probe.Probe` (its law `F = C G
+    d^m`, contact radius, `jc.Sphere` / `jc.Cone`).
     """
 
-    radius: float
+    radius: float | None = None
     arms: int | str = "auto"
     n: int = 32
     poisson: float = 0.5
@@ -99,12 +120,35 @@ class AFMFitSettings:
     analysis_uncertainty: bool = True
     solver: str = "auto"
     rings: int = 64
+    tip: str = "sphere"
+    half_angle: float | None = None
 
     def __post_init__(self):
-        r = self.radius
-        if isinstance(r, bool) or not isinstance(r, (int, float)) or not (
-                math.isfinite(r) and r > 0):
-            raise ValueError(f"radius must be a finite number > 0 [m], got {r!r}")
+        if self.tip not in TIPS:
+            raise ValueError(f"tip must be 'sphere' or 'cone', got {self.tip!r}")
+        if self.tip == "sphere":
+            r = self.radius
+            if r is None:
+                raise ValueError("a spherical tip needs radius [m] > 0 (or give "
+                                 "tip='cone' and half_angle [rad])")
+            if isinstance(r, bool) or not isinstance(r, (int, float)) or not (
+                    math.isfinite(r) and r > 0):
+                raise ValueError(f"radius must be a finite number > 0 [m], got {r!r}")
+            if self.half_angle is not None:
+                raise ValueError(f"half_angle={self.half_angle!r} is a cone's: give "
+                                 "tip='cone' (and no radius), or leave it out")
+        else:
+            if self.half_angle is None:
+                raise ValueError("tip='cone' needs half_angle [rad] in (0, pi/2), the "
+                                 "angle between the axis and the flank")
+            if self.radius is not None:
+                raise ValueError(f"radius={self.radius!r} is a sphere's: a cone "
+                                 "(tip='cone') has half_angle only")
+            if isinstance(self.half_angle, bool) or not isinstance(
+                    self.half_angle, (int, float)):
+                raise ValueError(f"half_angle must be a number in (0, pi/2) [rad], "
+                                 f"got {self.half_angle!r}")
+            Probe.cone(self.half_angle)  # the range check, naming the value
         if self.arms != "auto" and not (isinstance(self.arms, int) and
                                         1 <= self.arms <= 8):
             raise ValueError(f"arms must be an integer in 1..8 or 'auto', got "
@@ -136,6 +180,11 @@ class AFMFitSettings:
         if not (isinstance(self.rings, int) and not isinstance(self.rings, bool)
                 and self.rings >= 4):
             raise ValueError(f"rings must be an integer >= 4, got {self.rings!r}")
+
+    @property
+    def probe(self) -> Probe:
+        """The tip as a `Probe` (`Probe.sphere(radius)` or `Probe.cone(half_angle)`)."""
+        return Probe(self.tip, self.radius if self.tip == "sphere" else self.half_angle)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -183,31 +232,82 @@ def radius_warning(radius, depth):
     return text + ": check the radius's unit (metres) and the contact point"
 
 
-def apparent_hertz(curve, radius, poisson) -> dict:
-    """The Hertz fit of the approach: `F = 4/3 E / (1 - nu^2) sqrt(R) delta^(3/2)`
-    by least squares over the approach's raw samples in contact (depth > 0), at this
-    curve's contact point. `E_Pa` [Pa] is the number AFM tools (e.g. nanite) report
-    for an elastic sample; on a viscoelastic one it is a modulus between `E(t)` at
-    the approach's duration and `E_0`."""
+def half_angle_warning(half_angle):
+    """The warning text when a cone's half-angle `half_angle` [rad] is implausible
+    for an AFM probe (below `MIN_HALF_ANGLE`, 1 degree: sharper than any AFM cone;
+    most likely radians read as degrees), else None. The text names the angle, the
+    rule and the reading in degrees of the value taken as radians."""
+    if half_angle >= MIN_HALF_ANGLE:
+        return None
+    deg = math.degrees(half_angle)
+    return (f"--half-angle {deg:.4g} degrees ({half_angle:.4g} rad) is sharper than "
+            f"any AFM cone (half-angles about 10-45 degrees; the rule: at least "
+            f"{math.degrees(MIN_HALF_ANGLE):g} degree): the half-angle is in degrees "
+            f"on the command line; if {deg:.4g} was meant in radians, pass "
+            f"--half-angle {math.degrees(deg):.4g}")
+
+
+def tip_warning(probe, depth):
+    """`radius_warning` (a sphere: `probe.size` against the maximum depth `depth`
+    [m]) or `half_angle_warning` (a cone) of a `Probe`: a text, or None."""
+    if probe.tip == "sphere":
+        return radius_warning(probe.size, depth)
+    return half_angle_warning(probe.size)
+
+
+def apparent_hertz(curve, probe, poisson) -> dict:
+    """The elastic fit of the approach, `F = k E / (1 - nu^2) delta^m` (the probe's
+    law: Hertz for a sphere, `k = 4/3 sqrt(R)`, `m = 3/2`; Sneddon for a cone,
+    `k = 2 tan(alpha) / pi`, `m = 2`) by least squares over the approach's raw
+    samples in contact (depth > 0), at this curve's contact point. `probe`: a
+    sphere's radius [m] (a number, as before), a `Probe`, a `jc.Sphere` or a
+    `jc.Cone`. `E_Pa` [Pa] is the number AFM tools (e.g. nanite) report for an
+    elastic sample; on a viscoelastic one it is a modulus between `E(t)` at the
+    approach's duration and `E_0`. The report keeps the key `apparent_hertz` for
+    both tips; `law` says which."""
+    probe = Probe.of(probe)
     app = (curve.segment == 0) & (curve.depth > 0)
-    x = curve.depth[app] ** 1.5
-    e_star = 0.75 / math.sqrt(radius) * float(np.sum(curve.force[app] * x)
-                                               / np.sum(x * x))
+    x = curve.depth[app] ** probe.exponent
+    e_star = float(np.sum(curve.force[app] * x) / np.sum(x * x)) / probe.factor
+    name = "Hertz (sphere)" if probe.tip == "sphere" else "Sneddon (cone)"
     return {"E_Pa": e_star * (1 - poisson**2), "samples": int(app.sum()),
-            "note": "Hertz (sphere) fitted to the approach at this contact point, "
+            "law": probe.law,
+            "note": f"{name} fitted to the approach at this contact point, "
                     "E = E* (1 - nu^2)"}
+
+
+def _check_template(template, probe):
+    """A ValueError unless the template's indenter is `probe`'s tip (same shape,
+    radius or half-angle within 1e-6: a float32 template): the closed-form parts of
+    the fit follow the settings' tip, the contact model the template's."""
+    try:
+        got = Probe.of(template.indenter)
+    except ValueError as exc:
+        raise ValueError(f"template: {exc}") from None
+    if got.tip != probe.tip or abs(got.size - probe.size) > 1e-6 * probe.size:
+        raise ValueError(f"the template's indenter ({got.text()}) is not the settings' "
+                         f"tip ({probe.text()}): the contact point, start and apparent "
+                         "modulus follow the settings")
 
 
 def fit_afm_curve(curve, settings: AFMFitSettings, *, template=None) -> AFMFit:
     """Fit a Prony series to one `AFMCurve` (`jc.read_afm`) as `jaxcontact fit` does
     (the module notes list the steps); returns an `AFMFit`. `template`: the scene
-    whose grid and indenter the fit uses (default `curve.scene_template(radius,
-    n=settings.n, poisson=settings.poisson)`: a sphere on a grid 4 x the largest
-    Hertz contact radius wide)."""
+    whose grid and indenter the fit uses (default
+    `curve.scene_template(indenter=settings.probe.indenter(), n=settings.n,
+    poisson=settings.poisson)`: the sphere or cone on a grid 4 x its largest
+    contact radius wide; a given template's indenter must be the settings' tip,
+    else `ValueError`).
 
-    radius_note = radius_warning(settings.radius, float(np.max(curve.depth)))
-    if radius_note is not None:
-        warnings.warn(radius_note, UserWarning, stacklevel=2)
+    The curve should be read with the tip's exponent (`jc.read_afm(...,
+    exponent=settings.probe.exponent)`, as `jaxcontact fit` and `jc.fit_force_map`
+    do): its contact point assumes it."""
+    probe = settings.probe
+    if template is not None:
+        _check_template(template, probe)
+    tip_note = tip_warning(probe, float(np.max(curve.depth)))
+    if tip_note is not None:
+        warnings.warn(tip_note, UserWarning, stacklevel=2)
     problem = _Problem.of(curve, settings, template=template)
     fits, failed = {}, {}
     for k in ([settings.arms] if settings.arms != "auto" else
@@ -233,13 +333,18 @@ def fit_afm_curve(curve, settings: AFMFitSettings, *, template=None) -> AFMFit:
     disc = None if bias is None else float(np.sqrt(np.mean(bias**2)))
     _, raw_res, raw_seg = raw_residual(fit.material, fit.kind, curve, problem.template,
                                        **ring_keywords(fit))
-    hertz = apparent_hertz(curve, settings.radius, settings.poisson)
+    hertz = apparent_hertz(curve, probe, settings.poisson)
     uncertainty = (analysis_uncertainty(problem, fit, curve, bias, hertz["E_Pa"])
                    if settings.analysis_uncertainty else None)
     report = {
         "file": curve.path, "mode": curve.mode, "fitted": fit.kind,
-        "radius_m": settings.radius, "radius_note": RADIUS_NOTE,
-        "radius_warning": radius_note, "poisson": settings.poisson,
+        "tip": probe.parameters(), "tip_note": probe.scaling_note(),
+        "tip_warning": tip_note,
+        # a sphere's, as before (None for a cone)
+        "radius_m": settings.radius,
+        "radius_note": RADIUS_NOTE if probe.tip == "sphere" else None,
+        "radius_warning": tip_note if probe.tip == "sphere" else None,
+        "poisson": settings.poisson,
         "settings": _settings_json(settings),
         "tau_bounds_s": list(problem.tau_bounds) if problem.tau_bounds else None,
         "solver": fit.solver,
@@ -265,7 +370,7 @@ def fit_afm_curve(curve, settings: AFMFitSettings, *, template=None) -> AFMFit:
         "units": {"time": "s", "force": "N", "depth": "m", "modulus": "Pa (shear)",
                   "youngs_modulus": "Pa"},
     }
-    report.update(assess(fit, curve, problem, raw_res, raw_seg, disc, radius_note,
+    report.update(assess(fit, curve, problem, raw_res, raw_seg, disc, tip_note,
                          uncertainty))
     report["youngs_moduli"] = youngs_moduli(report["parameters"], fit.material,
                                             settings.poisson, problem.approach_time,
@@ -294,8 +399,8 @@ class _Problem:
         t, f, d, seg, counts = curve.resampled(
             dict(zip(names, settings.samples, strict=True)), return_counts=True)
         if template is None:
-            template = curve.scene_template(settings.radius, n=settings.n,
-                                            poisson=settings.poisson)
+            template = curve.scene_template(indenter=settings.probe.indenter(),
+                                            n=settings.n, poisson=settings.poisson)
         tau_bounds = settings.tau_bounds
         if tau_bounds == "auto":
             raw_step = float(np.median(np.diff(curve.time)))

@@ -53,7 +53,7 @@ from .result import (
     sorted_split,
 )
 from .rings_model import choose_solver, ring_model
-from .start import initial_guess, initial_times, lee_radok_start
+from .start import initial_guess, initial_times, lee_radok_start, load_exponent
 
 
 def fit_prony(
@@ -96,7 +96,7 @@ def fit_prony(
       (apparent elastic moduli, then a cheap Prony fit to them, starting from
       relaxation times log-spaced strictly inside [first time step, time span]).
       `"lee-radok"`: the best closed-form Lee & Radok model of the
-      data's loading and hold (a sphere, both `data.force` and
+      data's loading and hold (a `jc.Sphere` or a `jc.Cone`, both `data.force` and
       `data.depth`; the model the contact solve reproduces while the contact grows or
       holds, so the start is at the full model's optimum up to the grid's bias and
       the unloading). On the creep file at 32^2 with 2 arms, LM from it converged in
@@ -281,7 +281,8 @@ def set_up(data, scene_template, n_terms, options: FitOptions, *, init, poisson,
     if init is None:
         init = initial_guess(ev, refs, fit_poisson, kind, data.times, target, n,
                              initial_times(data.times, n), dtype, poisson,
-                             data.depth if kind == "force" else data.force)
+                             data.depth if kind == "force" else data.force,
+                             exponent=load_exponent(scene.indenter))
     theta = to_theta(init, refs, fit_poisson, dtype)
     theta = {k: v for k, v in theta.items() if k not in fixed}
     return _Problem(data, n, kind, scene, target, scale, rms_target, refs, ev, model,

@@ -12,9 +12,11 @@ model's own limit, or the fit's shortfall.
 
 Flags (each makes `jaxcontact fit` exit 1): not converged, a systematic misfit, a
 parameter at a bound, the grid's bias above the noise, a contact point the
-viscoelastic refinement could not place, an implausible probe radius. Caveats (do not
-change the exit status): a modulus that rests on relaxation times faster than the
-approach (`E_0`); an indentation deeper than the probe's radius.
+viscoelastic refinement could not place, an implausible probe radius (a sphere) or
+half-angle (a cone). Caveats (do not change the exit status): a modulus that rests on
+relaxation times faster than the approach (`E_0`); an indentation deeper than the
+sphere's radius (a cone has no length scale: no such caveat; its own limit, a sharp
+apex, is in the report's `tip_note`).
 """
 
 import math
@@ -244,10 +246,12 @@ def youngs_moduli(parameters, material, poisson, approach_time, uncertainty,
     return out
 
 
-def assess(fit, curve, problem, raw_res, raw_seg, disc, radius_note, uncertainty):
+def assess(fit, curve, problem, raw_res, raw_seg, disc, tip_note, uncertainty):
     """The report's verdict: parameters with their uncertainty, residuals against the
     noise by segment, the quality verdict, flags and caveats (a dict to merge into
-    the report)."""
+    the report). `tip_note`: the tip's plausibility warning (`fitting.afm.
+    tip_warning`) or None."""
+    probe = problem.settings.probe
     noise = curve.noise(fit.kind)
     fitted = [s for s in SEGMENTS if s in problem.settings.segments]
     by_segment = {}
@@ -260,7 +264,8 @@ def assess(fit, curve, problem, raw_res, raw_seg, disc, radius_note, uncertainty
     flags = []
     if not fit.converged:
         flags.append(f"not converged: {fit.message}")
-    floor = closed_form_floor(curve) if worse else None
+    floor = (closed_form_floor(curve, exponent=probe.exponent) if worse
+             else None)
     if worse:
         flags.append("systematic misfit: " + ", ".join(
             f"{k} {v:.3g} x the noise" for k, v in worse.items())
@@ -279,8 +284,9 @@ def assess(fit, curve, problem, raw_res, raw_seg, disc, radius_note, uncertainty
                      "below the noise")
     if "no minimum" in curve.contact_note or "too few" in curve.contact_note:
         flags.append(f"contact point: {curve.contact_note}")
-    if radius_note is not None:
-        flags.append(f"radius: {radius_note}")
+    if tip_note is not None:
+        what = "radius" if probe.tip == "sphere" else "half-angle"
+        flags.append(f"{what}: {tip_note}")
     if uncertainty is not None:
         flags.extend(uncertainty.flags)
     caveats = []
@@ -290,7 +296,8 @@ def assess(fit, curve, problem, raw_res, raw_seg, disc, radius_note, uncertainty
             f"E_0 rests on tau_1 = {tau1:.3g} s, faster than the approach "
             f"({problem.approach_time:.3g} s): an extrapolation the loading does not "
             "see; E_at_approach is what the approach measures")
-    depth_ratio = float(np.max(curve.depth)) / problem.settings.radius
+    depth_ratio = (float(np.max(curve.depth)) / probe.size if probe.tip == "sphere"
+                   else 0.0)
     if depth_ratio > DEEP:
         caveats.append(
             f"the maximum depth is {depth_ratio:.3g} x the probe radius: beyond the "

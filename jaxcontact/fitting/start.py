@@ -8,16 +8,15 @@ Lee & Radok model of the data's loading and hold.
 """
 
 import functools
-import math
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import optax
 
-from .._indenter import Sphere
 from .._loading import Displacement
 from .._material.prony import Prony, retardation_series
+from .._probe import Probe
 from .._scene import Scene
 from .data import IndentationData
 from .model import Evaluator
@@ -109,7 +108,7 @@ def _prefit(kind, lag, apparent, g_inf, arms, t_init, g_ref, t_ref, steps=200,
 
 
 def _apparent_moduli(ev: Evaluator, refs, fit_poisson, kind, target, n, t_init,
-                     dtype, poisson, driver):
+                     dtype, poisson, driver, exponent):
     """`(G_app, use, g_trial)`: the apparent elastic moduli of the samples `use` (see
     `initial_guess`; `None, None` where none) and the last trial modulus."""
     loading = np.ones(np.shape(target), bool)
@@ -128,7 +127,7 @@ def _apparent_moduli(ev: Evaluator, refs, fit_poisson, kind, target, n, t_init,
             ratio = tgt[ok] / curve[ok]
         else:
             ok = (tgt > 0.05 * np.max(tgt)) & (curve > 0) & loading
-            ratio = (curve[ok] / tgt[ok]) ** 1.5
+            ratio = (curve[ok] / tgt[ok]) ** exponent
         if not ok.any() or not np.all(np.isfinite(ratio)):
             break
         apparent, use = g_trial * ratio, ok
@@ -136,14 +135,24 @@ def _apparent_moduli(ev: Evaluator, refs, fit_poisson, kind, target, n, t_init,
     return apparent, use, g_trial
 
 
+def load_exponent(indenter) -> float:
+    """The power `m` of `F ~ d^m` that `initial_guess` assumes for `indenter`: 2 for a
+    self-similar tip (`jc.Cone`, `jc.Pyramid`), 3/2 (Hertz) for any other (exact for
+    a `jc.Sphere`; a heuristic elsewhere, refined by the fit)."""
+    from .._indenter import Cone, Pyramid
+
+    return 2.0 if isinstance(indenter, (Cone, Pyramid)) else 1.5
+
+
 def initial_guess(ev: Evaluator, refs, fit_poisson, kind, times, target, n, t_init,
-                  dtype, poisson, driver=None):
+                  dtype, poisson, driver=None, exponent=1.5):
     """A starting Prony series from apparent elastic moduli along the curve.
 
     One (or, under load control, two) evaluations of the model with an effectively
     elastic series (arms 1e-9 of the modulus) at a trial modulus `G`: under
     displacement control the force is proportional to `G`, under load control the
-    depth goes as `G^(-2/3)` (Hertz); this turns each sample into an apparent modulus
+    depth goes as `G^(-1/m)` (`exponent` `m` of `F ~ d^m`: 3/2, Hertz, by default;
+    2 for a cone); this turns each sample into an apparent modulus
     `G_app(t_k)`. Then `g_inf = min G_app`, `sum(g) = max G_app - g_inf` spread evenly
     over the arms at `t_init`, refined by a least-squares Prony fit of `G(t - t_0)` to
     `G_app(t)` (`t_0`: the first loaded sample). For a held indentation `G_app` is
@@ -158,7 +167,8 @@ def initial_guess(ev: Evaluator, refs, fit_poisson, kind, times, target, n, t_in
     led to `g_inf = 2e-10 Pa`).
     """
     apparent, use, g_trial = _apparent_moduli(ev, refs, fit_poisson, kind, target, n,
-                                              t_init, dtype, poisson, driver)
+                                              t_init, dtype, poisson, driver,
+                                              exponent)
     if apparent is None:
         return Prony(g_trial, np.full(n, 0.1 * g_trial / n), t_init, poisson)
     g0, g_inf = float(np.max(apparent)), float(np.min(apparent))
@@ -182,19 +192,24 @@ def lee_radok_start(data: IndentationData, scene_template: Scene, n_terms: int, 
     maximum (the loading and the hold: the contact radius does not shrink, and the
     full contact model is the closed form there, up to its grid) are fitted by
     `jaxcontact._lee_radok.lee_radok_fit` (times on a log grid of 20 over the span,
-    coefficients > 0, the fit's `weights`); the apparent moduli (compliances) are
-    converted with the sphere's radius `R` and `poisson`:
-    `G = 3 (1 - nu) G_app / (8 sqrt(R))` (relaxation, displacement control),
-    `J = 8 sqrt(R) J_app / (3 (1 - nu))` (creep, load control; then
-    `jc.Prony.from_creep`).
+    coefficients > 0, the fit's `weights`; `u = depth^m`, `m` 3/2 for a
+    `jc.Sphere`, 2 for a `jc.Cone`); the apparent moduli (compliances) are
+    converted with the probe's prefactor `C` of `F = C G d^m` at `poisson`
+    (`8 sqrt(R) / (3 (1 - nu))`, `4 tan(alpha) / (pi (1 - nu))`):
+    `G = G_app / C` (relaxation, displacement control), `J = C J_app` (creep,
+    load control; then `jc.Prony.from_creep`).
 
-    **Raises:** `ValueError` without a `jc.Sphere` indenter, without both force and
-    depth in `data`, or where no set of times gives positive coefficients.
+    **Raises:** `ValueError` without a `jc.Sphere` or `jc.Cone` indenter, without
+    both force and depth in `data`, or where no set of times gives positive
+    coefficients.
     """
+    from .._indenter import Cone, Sphere
     from .._lee_radok import lee_radok_fit
 
-    if not isinstance(scene_template.indenter, Sphere):
-        raise ValueError("init='lee-radok' needs a jc.Sphere indenter")
+    if not isinstance(scene_template.indenter, (Sphere, Cone)):
+        raise ValueError(f"init='lee-radok' needs a jc.Sphere or jc.Cone indenter, got "
+                         f"{type(scene_template.indenter).__name__}")
+    probe = Probe.of(scene_template.indenter)
     if data.force is None or data.depth is None:
         raise ValueError("init='lee-radok' needs both data.force and data.depth")
     depth = np.asarray(data.depth, float)
@@ -207,12 +222,11 @@ def lee_radok_start(data: IndentationData, scene_template: Scene, n_terms: int, 
     w = None if weights is None else np.asarray(weights, float)[:end]
     _, taus, c = lee_radok_fit(data.times[:end], np.asarray(data.force)[:end],
                                depth[:end], mode, arms=n_terms, weights=w,
-                               positive=True)
+                               positive=True, exponent=probe.exponent)
     if c is None:
         raise ValueError("init='lee-radok': no closed-form series with positive moduli "
                          "fits the data")
-    radius = float(scene_template.indenter.radius)
-    factor = 8 * math.sqrt(radius) / (3 * (1 - poisson))
+    factor = probe.prefactor(poisson)
     if mode == "relaxation":
         return Prony(c[0] / factor, c[1:] / factor, taus, poisson)
     return Prony.from_creep(c.sum() * factor, c[1:] * factor, taus, poisson)

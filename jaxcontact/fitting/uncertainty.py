@@ -7,9 +7,11 @@ the parameters more on real files (`benchmarks/notes/fit_real_files.md`):
 - the contact point: refit with it moved by its own uncertainty either way. That
   uncertainty, in samples, is the larger of (a) the distance between the piecewise
   (Lin et al.) and the viscoelastic contact points, two reasonable methods, and (b)
-  the approach samples before the Hertz force of the apparent modulus rises above the
-  baseline's noise, `delta_sigma = (sigma_F / (4/3 E* sqrt(R)))^(2/3)`: a contact
-  closer than that cannot be told from the baseline; at least 2 samples.
+  the approach samples before the elastic force of the apparent modulus rises above
+  the baseline's noise, `delta_sigma = (sigma_F / (k E*))^(1/m)` for the probe's law
+  `F = k E* d^m` (a sphere: `k = 4/3 sqrt(R)`, `m = 3/2`; a cone: `k = 2 tan(alpha) /
+  pi`, `m = 2`): a contact closer than that cannot be told from the baseline; at
+  least 2 samples.
 - the grid: refit to the data with the grid's bias at the result (the model's curve
   on the fit's grid minus on one twice as fine) removed from the target; the shift is
   the bias's effect on the parameters (a defect correction: the refit estimates the
@@ -25,6 +27,8 @@ import dataclasses
 import math
 
 import numpy as np
+
+from .._probe import Probe
 
 
 MIN_CONTACT_SHIFT = 2  # samples
@@ -57,9 +61,11 @@ class AnalysisUncertainty:
                          "target")}
 
 
-def contact_shift(curve, radius, poisson, e_apparent):
+def contact_shift(curve, probe, poisson, e_apparent):
     """`(samples, why)`: the contact point's uncertainty in samples of the file (see
-    the module notes)."""
+    the module notes). `probe`: a sphere's radius [m] (a number), a `Probe`, a
+    `jc.Sphere` or a `jc.Cone`; `e_apparent` [Pa]: the apparent Young's modulus."""
+    probe = Probe.of(probe)
     ic = int(curve.raw["contact_index"])
     piecewise = int(curve.raw.get("piecewise_contact_index", ic))
     methods = abs(ic - piecewise)
@@ -67,7 +73,7 @@ def contact_shift(curve, radius, poisson, e_apparent):
     sigma_f = curve.baseline_noise
     noise_samples = 0
     if math.isfinite(sigma_f) and sigma_f > 0 and e_star > 0:
-        depth_sigma = (sigma_f / (4 / 3 * e_star * math.sqrt(radius))) ** (2 / 3)
+        depth_sigma = (sigma_f / (probe.factor * e_star)) ** (1 / probe.exponent)
         app = curve.depth[curve.segment == 0]
         noise_samples = int(np.argmax(app >= depth_sigma)) if (
             app >= depth_sigma).any() else app.size
@@ -86,7 +92,7 @@ def analysis_uncertainty(problem, fit, curve, bias, e_apparent):
     settings = problem.settings
     arms = int(np.asarray(fit.material.g).shape[0])
     refits, details, flags = {}, {}, []
-    shift, details["contact"] = contact_shift(curve, settings.radius, settings.poisson,
+    shift, details["contact"] = contact_shift(curve, settings.probe, settings.poisson,
                                               e_apparent)
     ic = int(curve.raw["contact_index"])
     dt = float(np.median(np.diff(curve.time)))
