@@ -189,8 +189,9 @@ def test_committed_paper_size_numbers():
     # Fig. 24: continuous, the largest one-step drop about halving as the step halves
     abrupt = rows["Fig. 24a (abrupt)"]
     assert abrupt["verdict"] == "differs" and abrupt["crit_over_c0"] < 0.25
-    # at 321 points the last stick ratio before sliding is a few cells of c(0)
-    assert abrupt["crit_fine_slow"] < 0.02 and abrupt["crit_fine_fast"] < 0.02
+    # at 321 points the last stick ratio before sliding is a few cells of c(0) (on
+    # 128^2, the refinement's grid at paper size, one cell is 0.4 % of c(0))
+    assert abrupt["crit_fine_slow"] < 0.05 and abrupt["crit_fine_fast"] < 0.05
     assert abrupt["shrink_slow"] < 0.6 and abrupt["shrink_fast"] < 0.6
 
 
