@@ -13,6 +13,7 @@ before."""
 import dataclasses
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -69,16 +70,31 @@ def _forward_model(model):
     return SceneModel(model.kind, tuple(sorted(options.items())))
 
 
+def _cast(tree, dtype):
+    return jax.tree.map(lambda x: x.astype(dtype), tree)
+
+
 def _lm_solve_unjitted(theta, args, rtol, atol, max_steps):
+    """LM's own arithmetic runs in the default float type (float64 under x64), the
+    model in the fit's: optimistix's trust region keeps its step size in the default
+    type, which would promote the damped operator of a float32 fit out of the
+    structure of its float32 residual (lineax: "Vector and operator structures do not
+    match"). A no-op for a fit in the default type."""
     import optimistix as optx
 
     ctx, refs, target, scale, model, fit_poisson = args
     args = (ctx, refs, target, scale, _forward_model(model), fit_poisson)
-    sol = optx.least_squares(relative_residual,
-                             optx.LevenbergMarquardt(rtol=rtol, atol=atol),
-                             theta, args, options={"jac": "fwd"}, max_steps=max_steps,
-                             throw=False)
-    return sol.value, sol.result == optx.RESULTS.successful, sol.stats["num_steps"]
+    dtype = jax.tree.leaves(theta)[0].dtype
+    wide = jax.dtypes.canonicalize_dtype(jnp.float64)
+
+    def residual(th, a):
+        return relative_residual(_cast(th, dtype), a).astype(wide)
+
+    sol = optx.least_squares(residual, optx.LevenbergMarquardt(rtol=rtol, atol=atol),
+                             _cast(theta, wide), args, options={"jac": "fwd"},
+                             max_steps=max_steps, throw=False)
+    return (_cast(sol.value, dtype), sol.result == optx.RESULTS.successful,
+            sol.stats["num_steps"])
 
 
 @eqx.filter_jit
