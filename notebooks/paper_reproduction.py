@@ -1739,8 +1739,8 @@ verdict(
 # 2 tau, then 161 and 321) for full, semi ("x") and no coupling, at the paper's rate
 # (1e3 um/s, sliding when the modulus has relaxed) and at 4e3 um/s (sliding while it
 # relaxes): the paper's 81 points on the main grid, the refinement on `NST` (the main
-# grid below the paper size, 128^2 at it: the 256^2 rows at 161 and 321 points took
-# 600 of the run's 2131 s); the slow rate again on a second grid (`NS24`: 128^2 at
+# grid below the paper size, 128^2 at it: on 256^2 these rows alone would take longer
+# than the rest of the run); the slow rate again on a second grid (`NS24`: 128^2 at
 # paper size), and the refinement with the incremental slip law at both rates and
 # under load control (a tangential load ramp to mu W under the held load, instead of
 # the displacement ramp) on a third (`NSX`: 64^2 at paper size). The elastic reference:
