@@ -57,6 +57,17 @@ def _tau_grid(t, n_tau=20):
     return np.geomspace(max(first, 1e-3 * span), span, n_tau)
 
 
+def _cone_relaxation(t, g_inf, g, tau, v=5e-6, ramp=0.2):
+    """`(depth, force)` of a one-arm cone indented at `v` [m/s] for `ramp` [s] and
+    held, by hand: `F = C (g_inf d^2 + g int_0^t exp(-(t - s) / tau) d(d^2))`, the
+    integral in closed form for `d^2 = v^2 s^2` up to `m = min(t, ramp)`."""
+    d = v * np.minimum(t, ramp)
+    m = np.minimum(t, ramp)
+    conv = 2 * v**2 * (tau * m * np.exp(-(t - m) / tau)
+                       - tau**2 * np.exp(-(t - m) / tau) + tau**2 * np.exp(-t / tau))
+    return d, C_CONE * (g_inf * d**2 + g * conv)
+
+
 def test_lee_radok_fit_with_exponent_2_recovers_a_cone_material():
     """Relaxation: a depth ramp (5 um/s for 0.2 s) and hold, the force by hand,
     `F = C (g_inf d^2 + g int exp(-(t - s) / tau) d(d^2))`; creep: a force ramp and
@@ -69,14 +80,7 @@ def test_lee_radok_fit_with_exponent_2_recovers_a_cone_material():
     t = np.arange(0.0, 2.0 + 5e-4, 1e-3)
     taus = _tau_grid(t)
     tau, g_inf, g = taus[12], 1000.0, 500.0  # tau = 0.157 s
-    # relaxation
-    v, ramp = 5e-6, 0.2
-    d = v * np.minimum(t, ramp)
-    m = np.minimum(t, ramp)
-    # int_0^m exp(-(t - s) / tau) 2 v^2 s ds
-    conv = 2 * v**2 * (tau * m * np.exp(-(t - m) / tau)
-                       - tau**2 * np.exp(-(t - m) / tau) + tau**2 * np.exp(-t / tau))
-    force = C_CONE * (g_inf * d**2 + g * conv)
+    d, force = _cone_relaxation(t, g_inf, g, tau)  # relaxation
     misfit, got_tau, c = lee_radok_fit(t, force, d, "relaxation", arms=1, exponent=2)
     assert got_tau[0] == tau and misfit < 1e-10, (got_tau, misfit)
     np.testing.assert_allclose(c / C_CONE, [g_inf, g], rtol=1e-4)
@@ -88,6 +92,8 @@ def test_lee_radok_fit_with_exponent_2_recovers_a_cone_material():
     tau_c = taus[12]
     g0 = g_inf + g
     dj = 1 / g_inf - 1 / g0
+    ramp = 0.2
+    m = np.minimum(t, ramp)
     rate = 5e-9 / ramp  # N/s: 5 nN in 0.2 s
     f = rate * m
     u = rate / C_CONE * (m / g_inf - dj * tau_c * (np.exp(-(t - m) / tau_c)
@@ -106,12 +112,7 @@ def test_lee_radok_start_converts_with_the_cones_law():
     form here) is refused by name."""
     t = np.arange(0.0, 2.0 + 5e-4, 1e-3)
     tau = _tau_grid(t)[12]
-    v, ramp = 5e-6, 0.2
-    d = v * np.minimum(t, ramp)
-    m = np.minimum(t, ramp)
-    conv = 2 * v**2 * (tau * m * np.exp(-(t - m) / tau)
-                       - tau**2 * np.exp(-(t - m) / tau) + tau**2 * np.exp(-t / tau))
-    force = C_CONE * (1000.0 * d**2 + 500.0 * conv)
+    d, force = _cone_relaxation(t, 1000.0, 500.0, tau)
     data = jc.IndentationData(t, force=force, depth=d)
     grid = jc.Grid((8, 8), 2e-6)
     template = jc.Scene(grid, jc.Cone(ALPHA), jc.Elastic(1e3, NU), t[:3],
@@ -177,12 +178,7 @@ def test_a_float32_cone_fit_starts_from_lee_radok_and_runs_on_rings():
     f32 = jnp.float32
     t = np.r_[0.0, np.geomspace(0.01, 2.0, 30)]
     tau, g_inf, g = 0.3, 1000.0, 500.0
-    v, ramp = 5e-6, 0.2
-    d = v * np.minimum(t, ramp)
-    m = np.minimum(t, ramp)
-    conv = 2 * v**2 * (tau * m * np.exp(-(t - m) / tau)
-                       - tau**2 * np.exp(-(t - m) / tau) + tau**2 * np.exp(-t / tau))
-    force = C_CONE * (g_inf * d**2 + g * conv)
+    d, force = _cone_relaxation(t, g_inf, g, tau)
     data = jc.IndentationData(t.astype(np.float32), force=force.astype(np.float32),
                               depth=d.astype(np.float32))
     template = jc.Scene(jc.Grid((8, 8), jnp.asarray(2e-6, f32)),
