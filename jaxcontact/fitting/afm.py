@@ -417,9 +417,6 @@ class _Problem:
 
     def fit(self, arms, *, init=None, data=None):
         """`jc.fit_prony` of `arms` arms on these bins (or on `data`, same times)."""
-        import equinox as eqx
-        import jax.numpy as jnp
-
         data = self.data() if data is None else data
         weights = np.sqrt(self.counts)
         if init is None and self.settings.start == "lee-radok":
@@ -429,11 +426,6 @@ class _Problem:
             except ValueError:  # too few loading samples: the default start
                 init = None
         bounds = {"tau": self.tau_bounds} if self.tau_bounds else None
-        if init is not None and self.tau_bounds:
-            # a start on or beyond a bound is where the bounded parametrisation is flat
-            lo, hi = self.tau_bounds
-            init = eqx.tree_at(lambda m: m.tau, init, jnp.clip(
-                jnp.asarray(init.tau), lo * 1.05, hi / 1.05))
         return fit_prony(data, self.template, arms, weights=weights, init=init,
                          bounds=bounds,
                          options=FitOptions(lm_steps=self.settings.steps,

@@ -26,7 +26,6 @@ parameter. A direction the data do not determine gets `inf`.
 
 import math
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -73,8 +72,8 @@ def _scales(material, times):
 
 class _Coordinates:
     """Moves of a parameter set `theta` (every parameter, fixed ones included) in
-    scaled logs, returned in the optimiser's coordinates (a bounded parameter's
-    logit, kept 5 % inside its bounds)."""
+    scaled logs, returned in the optimiser's coordinates (the scaled logs; a bounded
+    parameter kept 5 % of its range inside its bounds)."""
 
     def __init__(self, theta, refs):
         self.theta, self.refs = theta, refs
@@ -83,8 +82,7 @@ class _Coordinates:
     def from_x(self, key, x):  # a scaled log -> the optimiser's coordinate of `key`
         if key in self.bounded:
             lo, hi = self.refs["bounds"][key]
-            f = jnp.clip((x - lo) / (hi - lo), 0.05, 0.95)
-            return jnp.log(f / (1 - f))
+            return jnp.clip(x, lo + 0.05 * (hi - lo), hi - 0.05 * (hi - lo))
         return x
 
     def log(self, key):
@@ -142,13 +140,14 @@ def _probe_trials(theta, free, refs, material, times):
             trials.append({**theta, "tau": theta["tau"].at[i].set(mid)})
     c = _Coordinates(theta, refs)
     trials += _modulus_trials(c, g_inf, g, tau, first, span, g0, g_ref, mid)
-    # a bounded parameter pressed against a bound (within 1 % of the range: the
-    # sigmoid is flat there, the same trap) is tried at the middle of its range
+    # a bounded parameter pressed against a bound (within 1 % of the range; beyond
+    # it the coordinate has no gradient back) is tried at the middle of its range
     for key in c.bounded & set(free):
-        frac = np.asarray(jax.nn.sigmoid(theta[key]), float).reshape(-1)
+        lo, hi = (float(b) for b in refs["bounds"][key])
+        frac = (np.asarray(theta[key], float).reshape(-1) - lo) / (hi - lo)
         for i in np.flatnonzero((frac < 0.01) | (frac > 0.99)):
-            moved = theta[key].reshape(-1).at[i].set(0.0).reshape(theta[key].shape)
-            trials.append({**theta, key: moved})
+            moved = theta[key].reshape(-1).at[i].set(0.5 * (lo + hi))
+            trials.append({**theta, key: moved.reshape(theta[key].shape)})
     trials = [{k: t[k] for k in free} for t in trials]
     return [t for t in trials if any(
         not bool(jnp.array_equal(t[k], free[k])) for k in free)]
@@ -216,11 +215,10 @@ def with_probes(run, theta, adam_steps, *, ev, refs, fit_poisson, times):
 # Sensitivities and the certificate.
 
 
-def log_covariance(rows, factor, sigma_rel):
+def log_covariance(rows, sigma_rel):
     """`(std, cov)` of the log-parameters from the Jacobian `rows` in the optimiser's
-    coordinates (`factor`: `d log / d theta` of each column, `inf` for an
-    undetermined one); `None` where the Jacobian is not finite."""
-    rows_log = rows / factor[None, :]
+    coordinates (the logs); `None` where the Jacobian is not finite."""
+    rows_log = rows
     if not np.all(np.isfinite(rows_log)):
         return None
     eigval, eigvec = np.linalg.eigh(rows_log.T @ rows_log)

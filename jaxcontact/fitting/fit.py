@@ -38,10 +38,12 @@ from .lm import LMRun, have_optimistix
 from .model import Evaluator, scene_model
 from .options import FitOptions, with_legacy
 from .parametrisation import (
-    bound_factors,
     check_bounds,
     check_fixed,
+    inside,
     make_refs,
+    pinned,
+    project,
     to_material,
     to_theta,
 )
@@ -112,8 +114,8 @@ def fit_prony(
       construction; fit fewer arms instead.) Poisson's ratio is fixed unless
       `fit_poisson`.
     - `bounds`: `{"g_inf" | "g" | "tau": (lo, hi)}`, `0 < lo < hi < inf` [Pa or s]:
-      the parameter (every arm for `g`, `tau`) is kept in `[lo, hi]` by the
-      parametrisation `log v = log lo + (log hi - log lo) sigmoid(theta)`. E.g.
+      the parameter (every arm for `g`, `tau`) is kept in `[lo, hi]` (its log
+      clipped there: beyond a bound the value is the bound, its derivative 0). E.g.
       `bounds={"tau": (dt, 10 * span)}` keeps relaxation times where the data can see
       them (a time far beyond the data is degenerate with `g_inf`). A parameter at a
       bound is a constrained minimum (`converged` can be `True` there); its `std` is
@@ -358,9 +360,11 @@ def _hand_over(p: _Problem, theta, probe, run_lm):
     # reaches the minimum from starts where L-BFGS stalls. So LM takes over where
     # L-BFGS' result is not certified (see `certify`).
     ev = p.ev
-    _, _, c_auto, _ = ev.loss(theta)
+    theta = project(theta, p.refs)
+    _, grad, c_auto, _ = ev.loss(theta)
     r_auto = (np.asarray(c_auto) - np.asarray(p.target)) / np.asarray(p.scale, float)
-    pred = predicted_decrease(ev.jacobian(theta, p.fd_step), r_auto)
+    rows, active = _jacobian(p, theta, grad)
+    pred = predicted_decrease(np.where(active[None, :], 0.0, rows), r_auto)
     value_auto = float(np.mean(r_auto**2))
     stuck = at_boundary(to_material(theta, p.refs, p.fit_poisson), p.data.times,
                         p.refs)
@@ -382,24 +386,30 @@ def _hand_over(p: _Problem, theta, probe, run_lm):
 # The certificate, the sensitivities and the result.
 
 
-def _sensitivities(p: _Problem, theta, rows, rel):
-    """`(std, cov, factor, sigma_rel, note)`: the Gauss-Newton std and covariance of
-    the log-parameters (NaN, and a note, where the Jacobian is not finite),
-    `d log / d theta` of each coordinate and the relative noise level."""
+def _jacobian(p: _Problem, theta, grad):
+    """`(rows, active)`: the `(nt, p)` Jacobian of the relative residual at `theta`
+    (central differences; a bounded coordinate on its bound is differenced a step
+    inside, so its column is the inside's, not half of it) and the flat `(p,)` mask
+    of the active set: the coordinates on a bound that the loss's gradient `grad`
+    pushes outwards, whose columns a Gauss-Newton step leaves out."""
+    rows = p.ev.jacobian(inside(theta, p.refs, p.fd_step), p.fd_step)
+    active = np.asarray(ravel_pytree(pinned(theta, grad, p.refs))[0], bool)
+    return rows, active
+
+
+def _sensitivities(p: _Problem, rows, rel):
+    """`(std, cov, sigma_rel, note)`: the Gauss-Newton std and covariance of the
+    log-parameters (NaN, and a note, where the Jacobian is not finite) and the
+    relative noise level."""
     if p.noise_std is None:
         sigma_rel = math.sqrt(float(np.sum(rel**2)) / (rel.shape[0] - p.n_params))
     else:
         sigma_rel = float(p.noise_std) / float(p.rms_target)
-    # The Jacobian in the logs of the parameters (bounded ones are optimised in a
-    # logit coordinate): std and covariance are those of the log-parameters.
-    factor = np.asarray(ravel_pytree(bound_factors(theta, p.refs))[0], float)
-    # a bounded parameter with its sigmoid saturated (factor 0) is undetermined
-    factor = np.where(factor > 0, factor, np.inf)
-    found = log_covariance(rows, factor, sigma_rel)
+    found = log_covariance(rows, sigma_rel)
     if found is None:
         return (np.full(rows.shape[1], np.nan), np.full((rows.shape[1],) * 2, np.nan),
-                factor, sigma_rel, "; the model's Jacobian is not finite: std is NaN")
-    return *found, factor, sigma_rel, ""
+                sigma_rel, "; the model's Jacobian is not finite: std is NaN")
+    return *found, sigma_rel, ""
 
 
 def _grid_check(p: _Problem, options: FitOptions, theta, curve):
@@ -418,17 +428,19 @@ def _grid_check(p: _Problem, options: FitOptions, theta, curve):
 
 def _finish(p: _Problem, options: FitOptions, run: _Run) -> PronyFit:
     """Certificate, sensitivities and the `jc.PronyFit` of the optimiser's `run`."""
-    theta = run.theta
+    theta = project(run.theta, p.refs)
     value, grad, curve, ok = p.ev.loss(theta)
-    rows = p.ev.jacobian(theta, p.fd_step)
+    rows, active = _jacobian(p, theta, grad)
     residual = np.asarray(curve) - np.asarray(p.target)
     rel = residual / np.asarray(p.scale, float)  # weighted, relative
-    std, cov, factor, sigma_rel, note = _sensitivities(p, theta, rows, rel)
+    std, cov, sigma_rel, note = _sensitivities(p, rows, rel)
     stuck = [x for x in at_boundary(to_material(theta, p.refs, p.fit_poisson),
                                     p.data.times, p.refs)
              if x.split("_")[0] + ("_inf" if x.startswith("g_inf") else "")
              not in p.fixed]
-    converged, verdict = certify(rows, rel, value, ok, run.probe, stuck, p.dtype)
+    # a constrained minimum: the Gauss-Newton step moves the free coordinates only
+    converged, verdict = certify(np.where(active[None, :], 0.0, rows), rel, value, ok,
+                                 run.probe, stuck, p.dtype)
     discretisation, grid_note = _grid_check(p, options, theta, curve)
     material = to_material(theta, p.refs, p.fit_poisson)
     if not p.stand_in and dict(p.model.options).get("scheme") == "constant":
@@ -458,8 +470,8 @@ def _finish(p: _Problem, options: FitOptions, run: _Run) -> PronyFit:
         std=sorted_split(theta, std, p.fixed, order),
         covariance=sorted_covariance(cov, theta, p.fixed, order, p.fit_poisson),
         parameter_names=parameter_names(p.n, p.fit_poisson),
-        gradient=sorted_split(theta, np.asarray(ravel_pytree(grad)[0]) / factor,
-                              p.fixed, order),
+        gradient=sorted_split(theta, np.asarray(ravel_pytree(grad)[0]), p.fixed,
+                              order),
         noise=sigma_rel * float(p.rms_target),
         discretisation=discretisation,
         solver=p.solver,

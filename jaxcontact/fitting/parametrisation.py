@@ -7,8 +7,12 @@ construction; every parameter O(1)):
 with `G_ref`, `T_ref` fixed reference scales (the initial instantaneous modulus and
 the data's time span), held with Poisson's ratio in `refs`. Fixed parameters
 (`fit_prony(fixed=...)`) live in `refs["fixed"]` as scaled logs, not in `theta`; a
-parameter with bounds (`fit_prony(bounds=...)`) is a logit between its scaled log
-bounds (`refs["bounds"]`). Here also: the checks of `fixed=` and `bounds=`.
+parameter with bounds (`fit_prony(bounds=...)`) keeps its scaled log as coordinate,
+clipped to its scaled log bounds (`refs["bounds"]`), a modulus without bounds to a
+floor of 1e-12 of `G_ref`: beyond a limit the value is the limit and its derivative
+0, so Levenberg-Marquardt's step stops there instead of creeping along a flattening
+coordinate (`project` puts a result on its limit). Here also: the checks of
+`fixed=` and `bounds=`.
 """
 
 import math
@@ -38,27 +42,68 @@ def to_material(theta: dict, refs: dict, fit_poisson: bool) -> Prony:
     )
 
 
+# The moduli's floor in scaled logs: 1e-12 of the reference modulus, far below what
+# any data resolve (under 1e-4 of g0 an arm is dead to the certificate) and below any
+# start's share of it (a start's dead arm can inflate the reference by 1e9). Beyond
+# it a modulus has no gradient: Levenberg-Marquardt leaves a dropped modulus there
+# (`lm.drop_a_modulus`) instead of creeping towards 0 in its log for ever.
+LOG_FLOOR = math.log(1e-12)
+
+
+def limits(refs, key):
+    """`(lo, hi)` of the coordinate of parameter `key` in scaled logs: its bounds
+    (`fit_prony(bounds=...)`, `refs["bounds"]`), the floor for a modulus without
+    bounds, `None` for an unbounded relaxation time."""
+    if key in refs.get("bounds", {}):
+        return refs["bounds"][key]
+    if key in ("g_inf", "g"):
+        return LOG_FLOOR, math.inf
+    return None
+
+
 def log_scaled(theta, refs, key):
-    """`log(value / reference)` of parameter `key`: `theta[key]` itself, or for a
-    parameter with bounds (`fit_prony(bounds=...)`, held in `refs["bounds"]` as
-    `(lo, hi)` in the same scaled logs) `lo + (hi - lo) sigmoid(theta[key])`."""
-    bounds = refs.get("bounds", {})
-    if key in bounds:
-        lo, hi = bounds[key]
-        return lo + (hi - lo) * jax.nn.sigmoid(theta[key])
-    return theta[key]
+    """`log(value / reference)` of parameter `key`: `theta[key]` clipped to its
+    `limits` (on a limit the derivative is the inside's, 1; beyond it 0)."""
+    lim = limits(refs, key)
+    if lim is None:
+        return theta[key]
+    lo, hi = lim
+    x = theta[key]
+    return jnp.where(x < lo, lo, jnp.where(x > hi, hi, x))
 
 
-def bound_factors(theta, refs):
-    """`d log(value) / d theta` of every leaf of `theta` (1 where unbounded)."""
+def project(theta, refs) -> dict:
+    """`theta` with every coordinate clipped to its `limits` (the same material: a
+    coordinate beyond a limit stands for the limit)."""
+    return {key: log_scaled(theta, refs, key) if key in _KEYS else value
+            for key, value in theta.items()}
+
+
+def inside(theta, refs, margin: float) -> dict:
+    """`theta` with every limited coordinate at least `margin` inside its limits (a
+    central difference of step `margin` there sees the inside's slope, not half of
+    it)."""
+    out = dict(theta)
+    for key in out:
+        lim = limits(refs, key) if key in _KEYS else None
+        if lim is not None and float(lim[1] - lim[0]) > 2 * margin:
+            out[key] = jnp.clip(out[key], lim[0] + margin, lim[1] - margin)
+    return out
+
+
+def pinned(theta, grad, refs) -> dict:
+    """`{key: bool array}`: the coordinates of `theta` on (or beyond) a limit that
+    the loss's gradient `grad` (same layout) pushes outwards: the active set of the
+    constrained minimum, whose columns a Gauss-Newton step must leave out."""
     out = {}
     for key, value in theta.items():
-        if key in refs.get("bounds", {}):
-            lo, hi = refs["bounds"][key]
-            sig = jax.nn.sigmoid(value)
-            out[key] = (hi - lo) * sig * (1 - sig)
-        else:
-            out[key] = jnp.ones_like(value)
+        lim = limits(refs, key) if key in _KEYS else None
+        if lim is None:
+            out[key] = jnp.zeros(jnp.shape(value), bool)
+            continue
+        lo, hi = lim
+        out[key] = ((value <= lo) & (grad[key] >= 0)) | ((value >= hi)
+                                                         & (grad[key] <= 0))
     return out
 
 
@@ -68,11 +113,11 @@ def to_theta(material: Prony, refs: dict, fit_poisson: bool, dtype) -> dict:
         "g": jnp.log(jnp.asarray(material.g, dtype) / refs["g_ref"]),
         "tau": jnp.log(jnp.asarray(material.tau, dtype) / refs["t_ref"]),
     }
-    for key, (lo, hi) in refs.get("bounds", {}).items():
-        # the logit coordinate, the start pulled 5 % of the range inside the bounds
-        # (where the sigmoid still has slope)
-        frac = jnp.clip((theta[key] - lo) / (hi - lo), 0.05, 0.95)
-        theta[key] = jnp.log(frac / (1 - frac))
+    for key in _KEYS:
+        # a start beyond a limit starts on it (where the coordinate still moves)
+        lim = limits(refs, key)
+        if lim is not None and key in theta:
+            theta[key] = jnp.clip(theta[key], *lim)
     if fit_poisson:
         nu = jnp.asarray(material.poisson, dtype)
         theta["poisson"] = jnp.log(nu / (0.5 - nu))  # logit(2 nu)
