@@ -15,9 +15,17 @@ path need) and the second (warm: everything compiled; the steady cost of a curve
 Each curve's compilations are counted from JAX's compile log
 (`jax_log_compiles`): number and seconds, by program.
 
+`--tile N`: the whole of `jc.fit_force_map` (reading, every fit, compilation
+included, the map's Dataset) timed on an N x N map made of the 4 curves, each copy
+with its own white noise added to the force (half the curve's own noise, from its
+first 100 samples: distinct curves of one shape); `--workers W` fits it on a local
+Dask cluster of W one-thread worker processes (`client=`). Writes
+`<machine>_tile<N>[_workers<W>].json`.
+
 Usage::
 
     python benchmarks/force_map.py [--passes 2] [--tiny] [--solver auto|rings|grid]
+    python benchmarks/force_map.py --tile 16 [--workers 2]
 
 Writes `benchmarks/results/force_map/<machine>.json` (`--tiny`: `<machine>_tiny.json`,
 `--solver grid`: `<machine>_grid.json`;
@@ -106,6 +114,88 @@ class StageTimes:
         return out
 
 
+def tiled_curves(raw, n: int, seed: int = 0) -> list:
+    """An `n` x `n` map of copies of the afmformats curves `raw` (in turn), each
+    copy's force with its own white noise of half the curve's noise (the std of the
+    first 100 samples' differences / sqrt 2), at grid index (x, y)."""
+    import copy
+
+    rng = np.random.default_rng(seed)
+    out = []
+    for k in range(n * n):
+        curve = copy.deepcopy(raw[k % len(raw)])
+        force = np.asarray(curve["force"], float)
+        noise = float(np.std(np.diff(force[:100]))) / np.sqrt(2)
+        curve["force"] = force + 0.5 * noise * rng.standard_normal(force.shape)
+        # afmformats exposes its metadata as a copy: the grid index set in place
+        curve._metadata["grid index x"], curve._metadata["grid index y"] = k % n, k // n
+        out.append(curve)
+    return out
+
+
+def tiled_map(args):
+    """`--tile N`: `jc.fit_force_map` on an N x N tiled map, timed whole."""
+    import warnings
+
+    import afmformats
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    import jaxcontact as jc
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        raw = afmformats.load_data(str(MAP))
+    curves = tiled_curves(raw, args.tile)
+    settings = jc.AFMFitSettings(radius=RADIUS, solver=args.solver)
+    client = cluster = None
+    if args.workers:
+        from dask.distributed import Client, LocalCluster
+
+        cluster = LocalCluster(n_workers=args.workers, threads_per_worker=1,
+                               processes=True, dashboard_address=None)
+        client = Client(cluster)
+    load_before = os.getloadavg()
+    t0, cpu0 = time.perf_counter(), time.process_time()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ds = jc.fit_force_map(curves, settings=settings, client=client,
+                              progress=False)
+    wall, cpu = time.perf_counter() - t0, time.process_time() - cpu0
+    if client is not None:
+        client.close()
+        cluster.close()
+    quality = {str(q): int((ds.quality == q).sum()) for q in np.unique(ds.quality)}
+    seconds = np.asarray(ds.seconds, float).ravel()
+    row = {"map": f"{args.tile}x{args.tile}", "curves": len(curves),
+           "workers": args.workers or 0, "wall_s": round(wall, 1),
+           "wall_per_curve_s": round(wall / len(curves), 3),
+           "main_process_cpu_s": round(cpu, 1),
+           "fit_s_median": round(float(np.nanmedian(seconds)), 3),
+           "fit_s_max": round(float(np.nanmax(seconds)), 3),
+           "fitted": int(ds.attrs["fitted"]), "flagged": int(ds.attrs["flagged"]),
+           "converged": int(np.asarray(ds.converged).sum()), "quality": quality,
+           "load_average_1min": round(os.getloadavg()[0], 2)}
+    summary = {"wall_per_curve_s": row["wall_per_curve_s"],
+               "extrapolated_64x64_min": round(4096 * wall / len(curves) / 60, 1)}
+    variant = f"tile{args.tile}" + (f"_workers{args.workers}" if args.workers else "")
+    result = {**header("force_map", variant=variant),
+              "settings": {"map": str(MAP.relative_to(ROOT)), "tile": args.tile,
+                           "added_noise": "0.5 x each curve's own, seed 0",
+                           "workers": args.workers or 0,
+                           **json.loads(json.dumps(vars(settings), default=list)),
+                           "x64": True, "persistent_cache": False,
+                           "versions_extra": {"afmformats": afmformats.__version__}},
+              "rows": [row], "summary": summary,
+              "notes": ["wall_s: the whole jc.fit_force_map call in a fresh process "
+                        "(every compilation included); fit_s: each curve's fit as "
+                        "the Dataset's `seconds` records it"]}
+    result["machine"]["load_average_before"] = list(load_before)
+    path = write_results(result)
+    print(json.dumps(row, indent=1))
+    print(f"-> {path}")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--passes", type=int, default=2)
@@ -116,7 +206,15 @@ def main():
                     help="tests/test_force_map.py's tiny settings (8^2, 8 approach "
                          "bins, 1 arm, no refits, no grid check) instead of the "
                          "command line's defaults; writes <machine>_tiny.json")
+    ap.add_argument("--tile", type=int, default=0,
+                    help="time jc.fit_force_map whole on an N x N map tiled from the "
+                         "4 curves (each copy with its own added noise)")
+    ap.add_argument("--workers", type=int, default=0,
+                    help="with --tile: a local Dask cluster of this many one-thread "
+                         "worker processes")
     args = ap.parse_args()
+    if args.tile:
+        return tiled_map(args)
 
     import warnings
 

@@ -1025,12 +1025,14 @@ class _CrawlingEvaluator:
     def loss(self, theta):
         return (self._loss(float(theta)),)
 
+    value = loss
+
 
 @pytest.mark.parametrize("loss, steps, how", [
     # a parameter creeping along a valley the data do not determine: the loss falls
-    # by 5e-7 of itself in the first run of 50 steps, below STALL_TOL (1e-4)
-    (lambda n: 1.0 + 1e-6 / (1.0 + n), 50, "stalled after 50 steps"),
-    # a loss that still halves every run: LM goes on to its bound
+    # by 1e-6 of itself in the first run of 25 steps, below STALL_TOL (1e-4)
+    (lambda n: 1.0 + 1e-6 / (1.0 + n), 25, "stalled after 25 steps"),
+    # a loss still falling (by half every 50 steps): LM goes on to its bound
     (lambda n: 2.0 ** (-n / 50), 200, "stopped after 200 steps"),
 ])
 def test_lm_stops_a_run_that_no_longer_lowers_the_loss(monkeypatch, loss, steps, how):
@@ -1045,12 +1047,12 @@ def test_lm_stops_a_run_that_no_longer_lowers_the_loss(monkeypatch, loss, steps,
         return theta + max_steps, False, max_steps
 
     monkeypatch.setattr(_lm, "_lm_solve", lm_solve)
-    assert (_lm.LM_CHUNK, _lm.STALL_TOL) == (50, 1e-4)
+    assert (_lm.LM_CHUNK, _lm.STALL_TOL) == (25, 1e-4)
     run = _lm.LMRun(_CrawlingEvaluator(loss), 200, jnp.float64, None, [])
     theta, ok, message, _, _ = run(0.0)
     assert not ok and how in message and run.total == steps == theta
     assert ("stalled" in message) == how.startswith("stalled")
-    assert runs == [50] * (steps // 50)
+    assert runs == [25] * (steps // 25)
 
 
 @pytest.mark.parametrize("max_steps", [20, 200])

@@ -96,7 +96,7 @@ class AFMFitSettings:
     - `start`: `"lee-radok"` (the closed-form fit of loading and hold) or `"data"`
       (`jc.fit_prony`'s default start).
     - `steps`: bound on the Levenberg-Marquardt steps of each fit (a run also stops,
-      NOT converged, after 50 steps that lowered its loss by less than 1e-4 of
+      NOT converged, after 25 steps that lowered its loss by less than 1e-4 of
       itself: `jc.FitOptions.lm_steps`).
     - `check_grid`: solve the fitted model at twice the resolution (twice the rings,
       or a grid twice as fine): the model's discretisation bias.

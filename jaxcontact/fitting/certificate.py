@@ -161,12 +161,12 @@ def _boundary_probe(ev: Evaluator, theta, refs, fit_poisson, times):
     Each is tried alone, and a dead arm (modulus ~ 0 or time out of range) also
     revived whole; a parameter with bounds pressed against one is tried at the middle
     of its range (one evaluation each); the best is returned."""
-    value = float(ev.loss(theta)[0])
+    value = float(ev.value(theta)[0])
     material = to_material(theta, refs, fit_poisson)
     full = {**refs.get("fixed", {}), **theta}  # trials on all, kept: the free ones
     best, best_value = None, value * (1 - 1e-3)
     for trial in _probe_trials(full, theta, refs, material, times):
-        v = float(ev.loss(trial)[0])
+        v = float(ev.value(trial)[0])
         if np.isfinite(v) and v < best_value:
             best, best_value = trial, v
     return best

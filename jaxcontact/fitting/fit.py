@@ -328,7 +328,7 @@ def _optimise(p: _Problem, options: FitOptions, lm_ready=None) -> _Run:
     lm_only = options.optimiser == "lm" or (
         options.optimiser == "auto" and p.solver == "rings" and have_optimistix())
     if lm_only:
-        history.append(float(p.ev.loss(p.theta)[0]))
+        history.append(float(p.ev.value(p.theta)[0]))
         theta, message, probe, n_adam, n_lbfgs = probed(lm, p.theta, 0)
         return _Run(theta, message, probe, n_adam, n_lbfgs, lm.total, "lm", history)
     gtol = options.gtol
@@ -376,7 +376,7 @@ def _hand_over(p: _Problem, theta, probe, run_lm):
     # 3e-18 s, while LM from the start converges); the lower loss
     start_lm = run_lm(p.theta)
     end_lm = run_lm(theta)
-    best = min((start_lm, end_lm), key=lambda r: float(ev.loss(r[0])[0]))
+    best = min((start_lm, end_lm), key=lambda r: float(ev.value(r[0])[0]))
     why = (f"at a boundary ({', '.join(stuck)})" if stuck else
            f"Gauss-Newton predicts {pred:.2g}")
     return best[0], best[1], best[2], best is start_lm, why

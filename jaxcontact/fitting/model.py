@@ -77,6 +77,14 @@ def _objective(theta, ctx, refs, target, scale, model, fit_poisson):
     return jax.value_and_grad(loss, has_aux=True)(theta)
 
 
+@eqx.filter_jit
+def _forward(theta, ctx, refs, target, scale, model, fit_poisson):
+    """`(loss, curve, converged)`: `_objective` without its gradient (a forward solve
+    alone: what a trial point, a line of the Jacobian or a stopping test needs)."""
+    curve, ok = model(to_material(theta, refs, fit_poisson), ctx)
+    return jnp.mean(((curve - target) / scale) ** 2), curve, ok
+
+
 def relative_residual(theta, args):
     """Relative residual `(curve - target) / scale` (the least-squares form of
     `_objective`'s loss: `loss = mean(residual^2)`)."""
@@ -106,6 +114,15 @@ class Evaluator:
             return inf, theta, self.zeros + jnp.nan, jnp.zeros(self.zeros.shape, bool)
         return value, grad, curve, ok
 
+    def value(self, theta):
+        """`(loss, curve, converged)` as `loss` gives them, without the gradient."""
+        self.calls += 1
+        try:
+            return _forward(theta, *self.args)
+        except eqx.EquinoxRuntimeError:
+            inf = jnp.asarray(jnp.inf, self.zeros.dtype)
+            return inf, self.zeros + jnp.nan, jnp.zeros(self.zeros.shape, bool)
+
     def jacobian(self, theta, step):
         """`(nt, p)` Jacobian of the relative residual in the (flattened)
         log-parameters, by central differences of step `step`: `2 p` evaluations of the
@@ -115,8 +132,8 @@ class Evaluator:
         columns = []
         for e in np.eye(flat.shape[0]):
             e = jnp.asarray(step * e, flat.dtype)
-            _, _, up, _ = self.loss(unravel(flat + e))
-            _, _, down, _ = self.loss(unravel(flat - e))
+            _, up, _ = self.value(unravel(flat + e))
+            _, down, _ = self.value(unravel(flat - e))
             columns.append((np.asarray(up, float) - np.asarray(down, float))
                            / (2 * step * scale))
         return np.stack(columns, axis=1)

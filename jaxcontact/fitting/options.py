@@ -64,9 +64,9 @@ class FitOptions:
       by the Gauss-Newton Hessian at the start (`2 p` extra evaluations; usually
       saves many more).
     - `lm_steps` (default 100, >= 1): bound on the Levenberg-Marquardt steps of
-      every LM run. A run longer than 50 steps also stops, NOT converged
-      ("stalled"), after 50 steps that lowered the loss by less than 1e-4 of itself
-      (a parameter creeping towards a bound the data do not determine).
+      every LM run. A run longer than 25 steps also stops, NOT converged
+      ("stalled"), after 25 steps that lowered the loss by less than 1e-4 of itself
+      (a parameter creeping along a valley the data do not determine).
     - `solve_options`: keywords for `jc.solve` (`rtol`, `scheme`, ...; not
       `operator`: the fit builds it). The default scheme of a fit is `"linear"`
       (samples joined by ramps; stable at any step); `"constant"` treats every sample

@@ -120,7 +120,7 @@ def _apparent_moduli(ev: Evaluator, refs, fit_poisson, kind, target, n, t_init,
     apparent, use = None, None
     for _ in range(1 if kind == "force" else 2):
         trial = Prony(g_trial, np.full(n, 1e-9 * g_trial), t_init, poisson)
-        _, _, curve, _ = ev.loss(to_theta(trial, refs, fit_poisson, dtype))
+        _, curve, _ = ev.value(to_theta(trial, refs, fit_poisson, dtype))
         curve = np.asarray(curve, dtype=float)
         if kind == "force":
             ok = (np.abs(curve) > 0.05 * np.max(np.abs(curve))) & (tgt > 0) & loading
