@@ -30,7 +30,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .model import Evaluator
-from .parametrisation import log_scaled, to_material
+from .parametrisation import limits, to_material
 
 
 GN_TOL = 1e-3  # largest relative loss decrease a Gauss-Newton step may promise
@@ -71,9 +71,9 @@ def _scales(material, times):
 
 
 class _Coordinates:
-    """Moves of a parameter set `theta` (every parameter, fixed ones included) in
-    scaled logs, returned in the optimiser's coordinates (the scaled logs; a bounded
-    parameter kept 5 % of its range inside its bounds)."""
+    """Moves of a parameter set `theta` (every parameter, fixed ones included; NumPy
+    arrays) in scaled logs, returned in the optimiser's coordinates (the scaled logs;
+    a bounded parameter kept 5 % of its range inside its bounds)."""
 
     def __init__(self, theta, refs):
         self.theta, self.refs = theta, refs
@@ -81,18 +81,27 @@ class _Coordinates:
 
     def from_x(self, key, x):  # a scaled log -> the optimiser's coordinate of `key`
         if key in self.bounded:
-            lo, hi = self.refs["bounds"][key]
-            return jnp.clip(x, lo + 0.05 * (hi - lo), hi - 0.05 * (hi - lo))
+            lo, hi = (float(b) for b in self.refs["bounds"][key])
+            return np.clip(x, lo + 0.05 * (hi - lo), hi - 0.05 * (hi - lo))
         return x
 
-    def log(self, key):
-        return log_scaled(self.theta, self.refs, key)
+    def log(self, key):  # `log_scaled` in NumPy
+        lim = limits(self.refs, key)
+        x = self.theta[key]
+        return x if lim is None else np.clip(x, float(lim[0]), float(lim[1]))
 
     def shifted(self, key, delta):
         return self.from_x(key, self.log(key) + delta)
 
     def set_at(self, key, i, x):
-        return self.from_x(key, self.log(key).at[i].set(x))
+        return self.from_x(key, _set(self.log(key), i, x))
+
+
+def _set(array, i, x):
+    """A copy of the NumPy `array` with element `i` set to `x`."""
+    out = np.array(array)
+    out[i] = x
+    return out
 
 
 def _modulus_trials(c: _Coordinates, g_inf, g, tau, first, span, g0, g_ref, mid):
@@ -106,18 +115,18 @@ def _modulus_trials(c: _Coordinates, g_inf, g, tau, first, span, g0, g_ref, mid)
         inside = math.log(frac * g0 / g_ref)
         shrink = math.log(1 - frac)
         if g_inf < 1e-4 * g0:
-            trials.append({**theta, "g_inf": c.from_x("g_inf", jnp.full_like(
+            trials.append({**theta, "g_inf": c.from_x("g_inf", np.full_like(
                 theta["g_inf"], inside)), "g": c.shifted("g", shrink)})
         for i in range(g.shape[0]):
             tau_out = tau[i] < 1e-2 * first or tau[i] > 1e2 * span
             if g[i] < 1e-4 * g0 or tau_out:
                 # a dead arm (no modulus, or a time the data cannot see): revived
                 # whole, its time at the middle of the data's time scales
-                g_new = c.from_x("g", (c.log("g") + shrink).at[i].set(inside))
+                g_new = c.from_x("g", _set(c.log("g") + shrink, i, inside))
                 trials.append({**theta, "g_inf": c.shifted("g_inf", shrink),
                                "g": g_new, "tau": c.set_at("tau", i, mid)})
             if g[i] < 1e-4 * g0 and not tau_out:
-                g_new = c.from_x("g", (c.log("g") + shrink).at[i].set(inside))
+                g_new = c.from_x("g", _set(c.log("g") + shrink, i, inside))
                 trials.append({**theta, "g_inf": c.shifted("g_inf", shrink),
                                "g": g_new})
     return trials
@@ -132,25 +141,26 @@ def _probe_trials(theta, free, refs, material, times):
     g0 = float(g_inf + g[live].sum()) if float(g_inf + g[live].sum()) > 0 else float(
         g_inf + g.sum())
     g_ref, t_ref = float(refs["g_ref"]), float(refs["t_ref"])
+    theta = {k: np.asarray(v) for k, v in theta.items()}  # trials built in NumPy
     trials = []
     mid = math.log(math.sqrt(first * span) / t_ref)
     for i in range(g.shape[0]):
         if (tau[i] < 1e-2 * first or tau[i] > 1e2 * span) and "tau" not in refs.get(
                 "bounds", {}):
-            trials.append({**theta, "tau": theta["tau"].at[i].set(mid)})
+            trials.append({**theta, "tau": _set(theta["tau"], i, mid)})
     c = _Coordinates(theta, refs)
     trials += _modulus_trials(c, g_inf, g, tau, first, span, g0, g_ref, mid)
     # a bounded parameter pressed against a bound (within 1 % of the range; beyond
     # it the coordinate has no gradient back) is tried at the middle of its range
     for key in c.bounded & set(free):
         lo, hi = (float(b) for b in refs["bounds"][key])
-        frac = (np.asarray(theta[key], float).reshape(-1) - lo) / (hi - lo)
+        frac = (theta[key].reshape(-1) - lo) / (hi - lo)
         for i in np.flatnonzero((frac < 0.01) | (frac > 0.99)):
-            moved = theta[key].reshape(-1).at[i].set(0.5 * (lo + hi))
+            moved = _set(theta[key].reshape(-1), i, 0.5 * (lo + hi))
             trials.append({**theta, key: moved.reshape(theta[key].shape)})
-    trials = [{k: t[k] for k in free} for t in trials]
-    return [t for t in trials if any(
-        not bool(jnp.array_equal(t[k], free[k])) for k in free)]
+    current = {k: np.asarray(v) for k, v in free.items()}
+    return [{k: jnp.asarray(t[k], dtype=free[k].dtype) for k in free} for t in trials
+            if any(not np.array_equal(t[k], current[k]) for k in free)]
 
 
 def _boundary_probe(ev: Evaluator, theta, refs, fit_poisson, times):
