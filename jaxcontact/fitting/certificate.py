@@ -228,10 +228,9 @@ def with_probes(run, theta, adam_steps, *, ev, refs, fit_poisson, times):
 def log_covariance(rows, sigma_rel):
     """`(std, cov)` of the log-parameters from the Jacobian `rows` in the optimiser's
     coordinates (the logs); `None` where the Jacobian is not finite."""
-    rows_log = rows
-    if not np.all(np.isfinite(rows_log)):
+    if not np.all(np.isfinite(rows)):
         return None
-    eigval, eigvec = np.linalg.eigh(rows_log.T @ rows_log)
+    eigval, eigvec = np.linalg.eigh(rows.T @ rows)
     keep = eigval > 1e-14 * max(float(eigval.max()), 1e-300)
     inv = np.where(keep, 1 / np.where(keep, eigval, 1), 0.0)
     var = np.sum(eigvec**2 * inv[None, :], axis=1)
