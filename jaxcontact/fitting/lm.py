@@ -124,12 +124,12 @@ def drop_a_modulus(ev: Evaluator, theta, value: float):
     for key in ("g_inf", "g"):
         if key not in theta or key in bounded:
             continue
-        flat = jnp.ravel(theta[key])
-        for i in range(flat.shape[0]):
-            if not float(flat[i]) > LOG_FLOOR:
-                continue
-            trial = {**theta, key: flat.at[i].set(LOG_FLOOR - 1).reshape(
-                jnp.shape(theta[key]))}
+        flat = np.ravel(np.asarray(theta[key]))  # trials built in NumPy
+        for i in np.flatnonzero(flat > LOG_FLOOR):
+            moved = flat.copy()
+            moved[i] = LOG_FLOOR - 1
+            trial = {**theta, key: jnp.asarray(moved.reshape(np.shape(theta[key])),
+                                               dtype=theta[key].dtype)}
             v = float(ev.value(trial)[0])
             if np.isfinite(v) and v <= (value if best is None else best[1]):
                 best = (trial, v)

@@ -65,24 +65,23 @@ def scene_model(scene, kind: str, solve_options: dict | None):
     return model, (scene, operator_for(scene, traced_directions(scene)))
 
 
-@eqx.filter_jit
-def _objective(theta, ctx, refs, target, scale, model, fit_poisson):
-    """`(loss, (curve, converged)), d loss / d theta` with
-    `loss = mean(((curve - target) / scale)^2)`."""
-
-    def loss(theta):
-        curve, ok = model(to_material(theta, refs, fit_poisson), ctx)
-        return jnp.mean(((curve - target) / scale) ** 2), (curve, ok)
-
-    return jax.value_and_grad(loss, has_aux=True)(theta)
-
-
-@eqx.filter_jit
-def _forward(theta, ctx, refs, target, scale, model, fit_poisson):
-    """`(loss, curve, converged)`: `_objective` without its gradient (a forward solve
-    alone: what a trial point, a line of the Jacobian or a stopping test needs)."""
+def _loss(theta, ctx, refs, target, scale, model, fit_poisson):
+    """`(loss, (curve, converged))` with `loss = mean(((curve - target) / scale)^2)`."""
     curve, ok = model(to_material(theta, refs, fit_poisson), ctx)
-    return jnp.mean(((curve - target) / scale) ** 2), curve, ok
+    return jnp.mean(((curve - target) / scale) ** 2), (curve, ok)
+
+
+@eqx.filter_jit
+def _objective(theta, *args):
+    """`(loss, (curve, converged)), d loss / d theta` of `_loss`."""
+    return jax.value_and_grad(_loss, has_aux=True)(theta, *args)
+
+
+@eqx.filter_jit
+def _forward(theta, *args):
+    """`_loss` without its gradient (a forward solve alone: what a trial point, a
+    line of the Jacobian or a stopping test needs)."""
+    return _loss(theta, *args)
 
 
 def relative_residual(theta, args):
@@ -118,7 +117,8 @@ class Evaluator:
         """`(loss, curve, converged)` as `loss` gives them, without the gradient."""
         self.calls += 1
         try:
-            return _forward(theta, *self.args)
+            value, (curve, ok) = _forward(theta, *self.args)
+            return value, curve, ok
         except eqx.EquinoxRuntimeError:
             inf = jnp.asarray(jnp.inf, self.zeros.dtype)
             return inf, self.zeros + jnp.nan, jnp.zeros(self.zeros.shape, bool)

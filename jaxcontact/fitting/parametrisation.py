@@ -53,7 +53,7 @@ LOG_FLOOR = math.log(1e-12)
 def limits(refs, key):
     """`(lo, hi)` of the coordinate of parameter `key` in scaled logs: its bounds
     (`fit_prony(bounds=...)`, `refs["bounds"]`), the floor for a modulus without
-    bounds, `None` for an unbounded relaxation time."""
+    bounds, `None` for an unbounded relaxation time (and Poisson's ratio)."""
     if key in refs.get("bounds", {}):
         return refs["bounds"][key]
     if key in ("g_inf", "g"):
@@ -75,8 +75,7 @@ def log_scaled(theta, refs, key):
 def project(theta, refs) -> dict:
     """`theta` with every coordinate clipped to its `limits` (the same material: a
     coordinate beyond a limit stands for the limit)."""
-    return {key: log_scaled(theta, refs, key) if key in _KEYS else value
-            for key, value in theta.items()}
+    return {key: log_scaled(theta, refs, key) for key in theta}
 
 
 def inside(theta, refs, margin: float) -> dict:
@@ -85,7 +84,7 @@ def inside(theta, refs, margin: float) -> dict:
     it)."""
     out = dict(theta)
     for key in out:
-        lim = limits(refs, key) if key in _KEYS else None
+        lim = limits(refs, key)
         if lim is not None and float(lim[1] - lim[0]) > 2 * margin:
             out[key] = jnp.clip(out[key], lim[0] + margin, lim[1] - margin)
     return out
@@ -97,7 +96,7 @@ def pinned(theta, grad, refs) -> dict:
     constrained minimum, whose columns a Gauss-Newton step must leave out."""
     out = {}
     for key, value in theta.items():
-        lim = limits(refs, key) if key in _KEYS else None
+        lim = limits(refs, key)
         if lim is None:
             out[key] = jnp.zeros(jnp.shape(value), bool)
             continue
