@@ -13,9 +13,10 @@ on a domain of 4 a) with one value of each axis:
   creep series (`Prony.from_creep`);
 - `slip`: incremental or total; `scheme`: constant or linear; a periodic grid; a
   `jc.Surface` (a paraboloid with a bump) instead of the sphere;
-- `solver`: the grid (`jc.solve`'s default) or, for the frictionless normal scenes,
-  the axisymmetric ring solver (`jc.solve(..., solver=jc.RingPolonskyKeer())`,
-  named `rings`: its own implicit derivatives, reverse and forward mode);
+- `solver`: the grid (`jc.solve`'s default with friction; `jc.Rounds()` for the
+  frictionless scenes) or, for the frictionless normal scenes, the axisymmetric ring
+  solver (`jc.solve`'s default there, named `rings`: its own implicit derivatives,
+  reverse and forward mode);
 - `parameter` (the scalar differentiated): load scale, friction, modulus scale,
   relaxation-time scale, Poisson's ratio, radius scale, bump height, tangential scale;
 - `mode`: `jit` (`jit(value_and_grad)`), `grad` (`jax.grad`, eager), `jvp` (`jax.jvp`
@@ -222,14 +223,18 @@ def response(case: Case, sol: jc.Solution):
 def _function(case, dtype=jnp.float64, rtol=None, adjoint=None):
     def f(theta):
         kwargs = {} if rtol is None else dict(rtol=rtol)
+        scene_ = scene(case, theta, dtype)
         if case.solver == "rings":  # its own implicit derivatives: no `adjoint`
             kwargs, adjoint_ = dict(solver=jc.RingPolonskyKeer(rtol=rtol)), None
         else:
             adjoint_ = adjoint
+            if scene_.tangential_directions == 0:
+                # The grid's rounds, which `jc.solve` leaves for the rings on a
+                # frictionless sphere.
+                kwargs = dict(solver=jc.Rounds(**kwargs))
         if case.scheme != "constant":
             kwargs["scheme"] = case.scheme
-        return response(case, jc.solve(scene(case, theta, dtype), adjoint=adjoint_,
-                                       **kwargs))
+        return response(case, jc.solve(scene_, adjoint=adjoint_, **kwargs))
     return f
 
 

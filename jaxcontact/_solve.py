@@ -229,15 +229,34 @@ def warn_unstable_steps(material, times):
             f"shorter steps.", _validate.TimeStepWarning, stacklevel=3)
 
 
-def _ring_solver(scene: Scene, solver) -> RingPolonskyKeer | None:
-    """The ring solver `jc.solve` runs `scene` with (a `jc.RingPolonskyKeer` given as
-    `solver`; the scene must qualify, `axisymmetric_support`), or `None`: the grid."""
-    if not isinstance(solver, RingPolonskyKeer):
+def _ring_solver(scene: Scene, solver, operator, options: dict
+                 ) -> RingPolonskyKeer | None:
+    """The ring solver `jc.solve` runs `scene` with, or `None`: the grid. A
+    `jc.RingPolonskyKeer` given as `solver` (the scene must qualify,
+    `axisymmetric_support`), or by default (no `solver`, no `operator`) a qualifying
+    scene's, configured by `rtol`, `max_steps` and `precondition` in `options`."""
+    if isinstance(solver, RingPolonskyKeer):
+        why = axisymmetric_support(scene)
+        if why is not None:
+            raise ValueError(f"jc.RingPolonskyKeer cannot solve this scene: {why}")
+        if operator is not None:
+            raise TypeError("operator= is a grid's jc.HalfSpace; "
+                            "jc.RingPolonskyKeer lays its own rings")
+        return solver
+    if solver is not None or operator is not None:
         return None
-    why = axisymmetric_support(scene)
-    if why is not None:
-        raise ValueError(f"jc.RingPolonskyKeer cannot solve this scene: {why}")
-    return solver
+    if axisymmetric_support(scene) is not None:
+        return None
+    grid_only = [name for name in ("max_rounds", "resync_every")
+                 if options[name] is not None]
+    if grid_only:
+        raise TypeError(
+            f"{', '.join(grid_only)} configure the grid solver; this scene "
+            f"(frictionless, axisymmetric indenter) runs on rings by default: pass "
+            f"solver=jc.Rounds({grid_only[0]}=...) to solve it on the grid")
+    return RingPolonskyKeer(**{name: options[name]
+                               for name in ("rtol", "max_steps", "precondition")
+                               if options[name] is not None})
 
 
 def solve(
@@ -266,25 +285,30 @@ def solve(
 
     - `solver`: the step solver, an object (`jc.JointPCG()`, `jc.Rounds()`,
       `jc.Fallback(primary, secondary)`, `jc.LoadByDisplacement(solver)`,
-      `jc.RingPolonskyKeer()`, ...). `jc.RingPolonskyKeer()` solves a frictionless
-      scene (no tangential solve) with an axisymmetric indenter (`jc.Sphere`,
-      `jc.Cone`, ...) on `DEFAULT_RINGS` rings over half the grid's smaller side
-      (`sol.method == "rings"`; its derivatives are its own implicit ones, not
-      `adjoint`'s): second order in the ring width, milliseconds a history, its
-      pressures interpolated onto the grid's cells. `None` (default): chosen from
-      the scene, on the grid (`sol.method == "grid"`): the rounds (exact in one)
-      without coupling; with coupling the joint iteration. A concrete coupled
-      solution that still has a failed step is solved again,
-      whole, with the rounds as a fallback and, under tangential load control, a
-      root search over the displacement (`robust_solver`), compiled only then;
-      under `jit`, `vmap` or `grad` there is no second solve (the flags, or
-      `throw`, report the failure).
+      `jc.RingPolonskyKeer()`, ...). `None` (default): chosen from the scene.
+      A frictionless scene (no tangential solve) with an axisymmetric indenter
+      (`jc.Sphere`, `jc.Cone`, `jc.BluntedCone`, `jc.AxisymmetricProfile`) on a
+      non-periodic grid runs on rings (`jc.RingPolonskyKeer`, `sol.method ==
+      "rings"`): `DEFAULT_RINGS` rings over half the grid's smaller side, second
+      order in the ring width, milliseconds a history, the pressures interpolated
+      onto the grid's cells; its derivatives are its own implicit ones, not
+      `adjoint`'s. Any other scene runs on the grid (`sol.method == "grid"`): the
+      rounds (exact in one) without coupling; with coupling the joint iteration. A
+      grid solver given as `solver` (e.g. `jc.Rounds()`) or an `operator` solves an
+      axisymmetric scene on the grid. A concrete coupled solution that still has a
+      failed step is solved again, whole, with the rounds as a fallback and, under
+      tangential load control, a root search over the displacement
+      (`robust_solver`), compiled only then; under `jit`, `vmap` or `grad` there is
+      no second solve (the flags, or `throw`, report the failure).
     - `rtol`, `max_steps`, `max_rounds`, `resync_every`, `precondition`: options of
       the default solver (only without `solver`; a solver object carries its own):
       relative tolerance of every contact solve (`None`: `1e-8` in float64, `1e-5` in
-      float32), the iteration bound of each CG solve (2000), the bound on the
-      normal/tangential rounds (100), exact displacements every this many iterations
-      (25), the full-plane inverse preconditioners (`True`).
+      float32), the iteration bound of each CG solve (2000 on the grid, 1000 on
+      rings), the bound on the normal/tangential rounds (100), exact displacements
+      every this many iterations (25), the preconditioners (`True`: the full-plane
+      inverses on the grid, the rings' exact inverse). `max_rounds` and
+      `resync_every` are the grid's only: given for a scene that runs on rings by
+      default, they raise (pass `solver=jc.Rounds(...)`).
     - `adjoint`: how gradients are computed, a `jc.ImplicitAdjoint` (default one).
     - `throw`: `True` (default): raise when a step does not converge, with the
       `jc.RESULTS` message of the first such step (at run time, also under `jit`);
@@ -298,7 +322,8 @@ def solve(
       paper's scheme) or `"linear"` (piecewise linear within each step: higher order
       in the time step).
     - `operator`: a prebuilt `jc.HalfSpace` to reuse across calls (must match the
-      coupling the scene needs; built here if omitted).
+      coupling the scene needs; built here if omitted). Given, the scene is solved
+      on the grid.
     - `progress`: `None` (default: silent), `True` (print `step k/nt` to stderr about
       every 5 % of the steps, as the steps complete), or a callable
       `f(step_index, n_steps)` called after each step (through `jax.debug.callback`).
@@ -345,10 +370,7 @@ def solve(
     elif progress is not None and not callable(progress):
         raise TypeError(
             f"progress must be None, a bool or a callable, got {progress!r}")
-    ring_solver = _ring_solver(scene, solver)
-    if ring_solver is not None and operator is not None:
-        raise TypeError("operator= is a grid's jc.HalfSpace; jc.RingPolonskyKeer lays "
-                        "its own rings")
+    ring_solver = _ring_solver(scene, solver, operator, options)
     if ring_solver is not None:
         rings = solve_axisymmetric(scene, solver=ring_solver, throw=False,
                                    history=history, scheme=scheme, progress=progress)

@@ -82,14 +82,18 @@ class RingSolution(eqx.Module):
         pressure = rings_to_grid(self.edges, self.pressure, grid, centre)
         nt = self.times.shape[0]
         contact = pressure > 0
+        stick = contact & (jnp.asarray(friction) > 0)
+        n_contact = jnp.sum(contact, axis=(1, 2))
+        stick_ratio = jnp.where(n_contact > 0, jnp.sum(stick, axis=(1, 2))
+                                / jnp.maximum(n_contact, 1), 0.0)
         return Solution(
             times=self.times, pressure=pressure,
             shear=jnp.zeros((nt, 2) + grid.shape, dtype), contact=contact,
-            stick=contact & (jnp.asarray(friction) > 0),
+            stick=stick,
             normal_force=self.normal_force,
             approach=self.approach, tangential_force=jnp.zeros((nt, 2), dtype),
             tangential_displacement=jnp.zeros((nt, 2), dtype),
-            stick_ratio=jnp.zeros((nt,), dtype), sliding=jnp.zeros((nt,), bool),
+            stick_ratio=stick_ratio.astype(dtype), sliding=jnp.zeros((nt,), bool),
             converged=self.converged, iterations=self.iterations,
             rounds=jnp.ones((nt,), jnp.int32), residual=self.residual,
             result=self.result, fallbacks=jnp.zeros((nt,), jnp.int32),

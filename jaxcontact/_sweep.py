@@ -12,6 +12,7 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 from ._scene import Scene
 from ._solution import Solution
 from ._solve import operator_for, solve
+from ._solve_rings import axisymmetric_support
 
 
 # Fields that may be swept. `grid` (it fixes the operator and the array shapes),
@@ -183,7 +184,9 @@ def sweep(scene: Scene, /, *, solve_options: dict | None = None, devices=None,
         `friction=0` does not switch the tangential solve off as it does in `jc.solve`
         (the answer is the same; the work is not). Under `vmap` a solver loop runs
         until the slowest entry of a device's slice converges: batch similar problems.
-        The operator (the kernel spectra) is built once for the whole sweep.
+        The operator (the kernel spectra) is built once for the whole sweep. A
+        frictionless axisymmetric scene is swept on rings, as `jc.solve` solves it
+        (`solve_options={"solver": jc.Rounds()}`: on the grid).
     """
     if not isinstance(scene, Scene):
         raise TypeError(f"scene must be a jc.Scene, got {scene!r}")
@@ -213,7 +216,12 @@ def sweep(scene: Scene, /, *, solve_options: dict | None = None, devices=None,
     # Initial set-up: the operator the traced solve needs, from entry 0.
     first = _replace(scene, jax.tree.map(lambda x: x[0] if eqx.is_array(x) else x,
                                          values))
-    operator = operator_for(first, traced_directions(first))
+    directions = traced_directions(first)
+    # A frictionless axisymmetric scene runs on rings, as `jc.solve` runs it: no grid
+    # operator to build (a grid solver in solve_options keeps the grid).
+    on_rings = (options.get("solver") is None and directions == 0
+                and axisymmetric_support(first) is None)
+    operator = None if on_rings else operator_for(first, directions)
     # Callables (e.g. a jc.Force(lambda t: ...) value) stay static.
     dynamic, static = eqx.partition((scene, operator), eqx.is_array)
 

@@ -149,8 +149,12 @@ def solve_all(jobs):
     """`{key: (scene, label)}` or `{key: (scene, label, solver)}` -> `{key: solution}`,
     solved `THREADS` at a time, the dearest first (cells x time points) so that the
     last ones are short; each solve recorded in `SOLVES` (its `seconds`: wall time,
-    shared with the other thread). `solver`: `jc.solve`'s (default: its own choice)."""
+    shared with the other thread). `solver`: `jc.solve`'s (default: its own choice on
+    the grid, the paper's method; `jc.solve` alone would put a frictionless sphere on
+    rings)."""
     def run(scene, label, unstable, solver=None):
+        if solver is None and scene.tangential_directions == 0:
+            solver = jc.Rounds()  # what jc.solve runs on the grid without friction
         start = time.perf_counter()
         sol = jax.tree_util.tree_map(np.asarray,
                                      jc.solve(canonical(scene), solver=solver))

@@ -603,11 +603,12 @@ def test_check_grid_reports_the_discretisation_error():
         return jc.Scene(jc.Grid((n, n), 10e-6), jc.Sphere(5e-6), material, times,
                         normal=jc.Displacement(depth))
 
-    force = jc.solve(scene(16, truth), scheme="linear").normal_force
+    force = jc.solve(scene(16, truth), solver=jc.Rounds(), scheme="linear").normal_force
     data = jc.IndentationData(times, force=force, depth=depth)
     fit = jc.fit_prony(data, scene(8, jc.Elastic(3e3, 0.5)), 1,
                        options=jc.FitOptions(check_grid=True, solver="grid"))
-    fine = jc.solve(scene(16, fit.material), scheme="linear").normal_force
+    fine = jc.solve(scene(16, fit.material), solver=jc.Rounds(),
+                    scheme="linear").normal_force
     expected = float(np.sqrt(np.mean((fit.curve - np.asarray(fine)) ** 2)))
     assert fit.discretisation is not None and expected > 0
     np.testing.assert_allclose(fit.discretisation, expected, rtol=1e-8)

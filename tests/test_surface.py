@@ -51,7 +51,7 @@ def radii(scene):
 @pytest.fixture(scope="module")
 def hertz():
     scene = P.hertz(n=64)
-    sol = jc.solve(scene)
+    sol = jc.solve(scene, solver=jc.Rounds())  # on the grid: its cells' displacements
     return scene, sol, np.asarray(jc.surface_displacement(scene, sol))
 
 
@@ -115,7 +115,7 @@ def test_viscoelastic_step_load_is_hertz_profile_of_lee_radok_radius(case):
     else:  # a fluidity term in the creep series (J = 1/G + t/eta)
         scene = P.maxwell(n=48, steps=21)
         load = 100.0
-    sol = jc.solve(scene)
+    sol = jc.solve(scene, solver=jc.Rounds())  # the grid's (not the rings')
     u = np.asarray(jc.surface_displacement(scene, sol))
     assert u.shape == (scene.times.shape[0], 3, 48, 48)
     _, _, r = radii(scene)
@@ -188,7 +188,7 @@ def test_coupled_total_slip_stick_cells_follow_rigid_displacement():
 
 def test_linear_scheme_matches_a_linear_solve():
     scene = P.zener(ratio=10, n=16, steps=9)
-    sol = jc.solve(scene, scheme="linear")
+    sol = jc.solve(scene, solver=jc.Rounds(), scheme="linear")  # the grid's
     h0 = np.asarray(scene.indenter.gap(scene.grid))
     lin = np.asarray(jc.surface_displacement(scene, sol, scheme="linear"))
     const = np.asarray(jc.surface_displacement(scene, sol))  # the wrong scheme

@@ -37,7 +37,7 @@ def _times(ratio, nt=24):
 def _approach(ratio, scheme):
     grid = jc.Grid((24, 24), 10 * A0)
     scene = jc.Scene(grid, jc.Sphere(R), MATERIAL, _times(ratio), jc.Force(W))
-    sol = jc.solve(scene, scheme=scheme)
+    sol = jc.solve(scene, solver=jc.Rounds(), scheme=scheme)  # the grid's stepping
     assert bool(np.all(np.asarray(sol.converged)))
     return np.asarray(sol.approach)
 

@@ -25,6 +25,7 @@ import numpy as np
 
 from .._loading import Displacement, Force
 from .._solve import solve
+from .._solver.rounds import Rounds
 from .floor import closed_form_floor
 
 
@@ -73,7 +74,8 @@ def model_curve(material, template, *, times, force, depth, kind, refine=1,
               else Displacement(jnp.asarray(depth)))
     scene = eqx.tree_at(lambda s: (s.grid, s.material, s.times, s.normal), template,
                         (grid, material, jnp.asarray(times), normal))
-    sol = solve(scene, scheme="linear", throw=False)
+    # The grid's own check: `jc.solve` would put an axisymmetric scene on rings.
+    sol = solve(scene, solver=Rounds(), scheme="linear", throw=False)
     return np.asarray(sol.approach if kind == "depth" else sol.normal_force)
 
 
