@@ -425,7 +425,8 @@ def _run_scene(args, dtype) -> int:
     print(_progress_table(sol))
     n_bad = int((~sol.converged).sum())
     print(
-        f"done in {elapsed:.2f} s: {nt - n_bad}/{nt} steps converged, "
+        f"done in {elapsed:.2f} s on the {sol.method}: {nt - n_bad}/{nt} steps "
+        f"converged, "
         f"max residual {float(sol.residual.max()):.1e}"
     )
 

@@ -43,7 +43,10 @@ def show(fig, name):
 # ## 1. Hertz: one elastic load step
 #
 # `jc.presets.hertz` is a `jc.Scene`: a 10 mm sphere pressed with 0.15 N into an
-# elastic half-space with TRUE shear modulus G = 1.93 MPa and nu = 0.3.
+# elastic half-space with TRUE shear modulus G = 1.93 MPa and nu = 0.3. Frictionless
+# and axisymmetric, it is solved on rings (`sol.method == "rings"`: milliseconds, second
+# order), the ring pressures mapped onto the grid's cells; `jc.solve(scene,
+# solver=jc.Rounds())` solves it on the grid.
 
 # %%
 scene = jc.presets.hertz(n=N)
@@ -69,7 +72,7 @@ ax.plot(
     np.asarray(sol.pressure[0, :, N // 2]) / p0,
     "o",
     ms=3,
-    label=f"jaxcontact {N}x{N}",
+    label=f"jaxcontact ({sol.method}), {N}x{N} cells",
 )
 ax.set(xlabel="x / a0", ylabel="p / p0", title="Hertz contact")
 ax.legend()
