@@ -202,5 +202,7 @@ class LMRun:
             how = (f"stalled after {int(steps)} steps (the last {LM_CHUNK} lowered "
                    f"the loss by less than {STALL_TOL:g} of itself)")
         else:
-            how = f"{'converged' if bool(ok) else 'stopped'} after {int(steps)} steps"
+            # "met its tolerance", not "converged": the certificate decides that
+            how = (f"{'met its tolerance' if bool(ok) else 'stopped'} after "
+                   f"{int(steps)} steps")
         return new, bool(ok), f"Levenberg-Marquardt: {how}", 0, 0
