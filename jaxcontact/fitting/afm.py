@@ -126,14 +126,11 @@ class AFMFitSettings:
     def __post_init__(self):
         if self.tip not in TIPS:
             raise ValueError(f"tip must be 'sphere' or 'cone', got {self.tip!r}")
+        # Which of radius / half_angle goes with the tip; `Probe` checks the value.
         if self.tip == "sphere":
-            r = self.radius
-            if r is None:
+            if self.radius is None:
                 raise ValueError("a spherical tip needs radius [m] > 0 (or give "
                                  "tip='cone' and half_angle [rad])")
-            if isinstance(r, bool) or not isinstance(r, (int, float)) or not (
-                    math.isfinite(r) and r > 0):
-                raise ValueError(f"radius must be a finite number > 0 [m], got {r!r}")
             if self.half_angle is not None:
                 raise ValueError(f"half_angle={self.half_angle!r} is a cone's: give "
                                  "tip='cone' (and no radius), or leave it out")
@@ -144,11 +141,7 @@ class AFMFitSettings:
             if self.radius is not None:
                 raise ValueError(f"radius={self.radius!r} is a sphere's: a cone "
                                  "(tip='cone') has half_angle only")
-            if isinstance(self.half_angle, bool) or not isinstance(
-                    self.half_angle, (int, float)):
-                raise ValueError(f"half_angle must be a number in (0, pi/2) [rad], "
-                                 f"got {self.half_angle!r}")
-            Probe.cone(self.half_angle)  # the range check, naming the value
+        Probe(self.tip, self.radius if self.tip == "sphere" else self.half_angle)
         if self.arms != "auto" and not (isinstance(self.arms, int) and
                                         1 <= self.arms <= 8):
             raise ValueError(f"arms must be an integer in 1..8 or 'auto', got "
