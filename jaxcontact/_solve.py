@@ -229,12 +229,18 @@ def warn_unstable_steps(material, times):
             f"shorter steps.", _validate.TimeStepWarning, stacklevel=3)
 
 
-def _ring_solver(scene: Scene, solver, operator, options: dict
+def _ring_solver(scene: Scene, solver, operator, adjoint, options: dict
                  ) -> RingPolonskyKeer | None:
     """The ring solver `jc.solve` runs `scene` with, or `None`: the grid. A
     `jc.RingPolonskyKeer` given as `solver` (the scene must qualify,
     `axisymmetric_support`), or by default (no `solver`, no `operator`) a qualifying
-    scene's, configured by `rtol`, `max_steps` and `precondition` in `options`."""
+    scene's, configured by `rtol`, `max_steps` and `precondition` in `options`.
+    An `operator` selects the grid; what configures the grid only (`adjoint`,
+    `max_rounds`, `resync_every`) is refused on rings rather than ignored."""
+    grid_only = [name for name, value in (("adjoint", adjoint),
+                                          ("max_rounds", options["max_rounds"]),
+                                          ("resync_every", options["resync_every"]))
+                 if value is not None]
     if isinstance(solver, RingPolonskyKeer):
         why = axisymmetric_support(scene)
         if why is not None:
@@ -242,18 +248,22 @@ def _ring_solver(scene: Scene, solver, operator, options: dict
         if operator is not None:
             raise TypeError("operator= is a grid's jc.HalfSpace; "
                             "jc.RingPolonskyKeer lays its own rings")
+        if adjoint is not None:
+            raise TypeError("adjoint= configures the grid's implicit adjoint; "
+                            "jc.RingPolonskyKeer has its own implicit derivatives "
+                            "(reverse and forward mode alike): leave adjoint out")
         return solver
     if solver is not None or operator is not None:
         return None
     if axisymmetric_support(scene) is not None:
         return None
-    grid_only = [name for name in ("max_rounds", "resync_every")
-                 if options[name] is not None]
     if grid_only:
         raise TypeError(
             f"{', '.join(grid_only)} configure the grid solver; this scene "
-            f"(frictionless, axisymmetric indenter) runs on rings by default: pass "
-            f"solver=jc.Rounds({grid_only[0]}=...) to solve it on the grid")
+            f"(frictionless, axisymmetric indenter) runs on rings by default, with "
+            f"implicit derivatives of their own (reverse and forward mode alike): "
+            f"leave {'it' if len(grid_only) == 1 else 'them'} out, or pass "
+            f"solver=jc.Rounds() to solve it on the grid")
     return RingPolonskyKeer(**{name: options[name]
                                for name in ("rtol", "max_steps", "precondition")
                                if options[name] is not None})
@@ -295,7 +305,8 @@ def solve(
       `adjoint`'s. Any other scene runs on the grid (`sol.method == "grid"`): the
       rounds (exact in one) without coupling; with coupling the joint iteration. A
       grid solver given as `solver` (e.g. `jc.Rounds()`) or an `operator` solves an
-      axisymmetric scene on the grid. A concrete coupled solution that still has a
+      axisymmetric scene on the grid (`adjoint`, `max_rounds` and `resync_every`,
+      the grid's only, raise for a scene on rings). A concrete coupled solution that still has a
       failed step is solved again, whole, with the rounds as a fallback and, under
       tangential load control, a root search over the displacement
       (`robust_solver`), compiled only then; under `jit`, `vmap` or `grad` there is
@@ -309,7 +320,8 @@ def solve(
       inverses on the grid, the rings' exact inverse). `max_rounds` and
       `resync_every` are the grid's only: given for a scene that runs on rings by
       default, they raise (pass `solver=jc.Rounds(...)`).
-    - `adjoint`: how gradients are computed, a `jc.ImplicitAdjoint` (default one).
+    - `adjoint`: how the grid's gradients are computed, a `jc.ImplicitAdjoint`
+      (default one); the rings differentiate themselves and refuse it.
     - `throw`: `True` (default): raise when a step does not converge, with the
       `jc.RESULTS` message of the first such step (at run time, also under `jit`);
       `False`: return the flags (`converged`, `result`) and carry on. A
@@ -354,9 +366,7 @@ def solve(
             _validate.positive_int(name, options[name])  # TypeError / ValueError
     if precondition is not None and not isinstance(precondition, bool):
         raise TypeError(f"precondition must be a bool, got {precondition!r}")
-    if adjoint is None:
-        adjoint = ImplicitAdjoint()
-    elif not isinstance(adjoint, ImplicitAdjoint):
+    if adjoint is not None and not isinstance(adjoint, ImplicitAdjoint):
         raise TypeError(f"adjoint must be a jc.ImplicitAdjoint, got {adjoint!r}")
     check_time_options(throw, history, scheme)
     if rtol is not None:
@@ -370,7 +380,9 @@ def solve(
     elif progress is not None and not callable(progress):
         raise TypeError(
             f"progress must be None, a bool or a callable, got {progress!r}")
-    ring_solver = _ring_solver(scene, solver, operator, options)
+    ring_solver = _ring_solver(scene, solver, operator, adjoint, options)
+    if adjoint is None:
+        adjoint = ImplicitAdjoint()
     if ring_solver is not None:
         rings = solve_axisymmetric(scene, solver=ring_solver, throw=False,
                                    history=history, scheme=scheme, progress=progress)

@@ -315,7 +315,8 @@ def test_equals_grid_solver_viscoelastic_sphere():
     grid = jc.Grid((48, 48), 1.2)
     scene = jc.Scene(grid, jc.Sphere(R), material, times, jc.Displacement(approach))
     rings = solve_axisymmetric(scene, rings=100, radius=0.6)
-    on_grid = jc.solve(scene)
+    on_grid = jc.solve(scene, solver=jc.Rounds())  # jc.solve's default: the rings
+    assert on_grid.method == "grid"
     peak = float(jnp.max(rings.normal_force))
     np.testing.assert_allclose(rings.normal_force, on_grid.normal_force,
                                atol=0.01 * peak, rtol=0)
@@ -373,7 +374,7 @@ def test_annular_contact_equals_grid():
     scene = jc.Scene(grid, tip, jc.Elastic(G, NU), jnp.zeros(1),
                      jc.Displacement(0.02))
     rings = solve_axisymmetric(scene, rings=120, radius=0.6)
-    on_grid = jc.solve(scene)
+    on_grid = jc.solve(scene, solver=jc.Rounds())  # jc.solve's default: the rings
     assert not bool(rings.contact[0, 0])
     assert bool(jnp.any(rings.contact[0]))
     assert float(rings.normal_force[0]) == pytest.approx(
@@ -553,7 +554,7 @@ def test_grid_converges_to_rings():
     ring_change = float(jnp.max(jnp.abs(fine - coarse))) / peak
     differences = []
     for n in (32, 64, 128):
-        grid = jc.solve(scene(n)).normal_force
+        grid = jc.solve(scene(n), solver=jc.Rounds()).normal_force
         differences.append(float(jnp.max(jnp.abs(grid - fine))) / peak)
     assert all(a / b > 1.7 for a, b in zip(differences, differences[1:])), differences
     assert ring_change < 0.25 * differences[-1]
