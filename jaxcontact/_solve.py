@@ -259,7 +259,8 @@ def _ring_solver(scene: Scene, solver, operator, adjoint, options: dict
         return None
     if grid_only:
         raise TypeError(
-            f"{', '.join(grid_only)} configure the grid solver; this scene "
+            f"{', '.join(grid_only)} configure{'s' if len(grid_only) == 1 else ''} "
+            f"the grid solver; this scene "
             f"(frictionless, axisymmetric indenter) runs on rings by default, with "
             f"implicit derivatives of their own (reverse and forward mode alike): "
             f"leave {'it' if len(grid_only) == 1 else 'them'} out, or pass "
@@ -306,9 +307,10 @@ def solve(
       rounds (exact in one) without coupling; with coupling the joint iteration. A
       grid solver given as `solver` (e.g. `jc.Rounds()`) or an `operator` solves an
       axisymmetric scene on the grid (`adjoint`, `max_rounds` and `resync_every`,
-      the grid's only, raise for a scene on rings). A concrete coupled solution that still has a
-      failed step is solved again, whole, with the rounds as a fallback and, under
-      tangential load control, a root search over the displacement
+      the grid's only, raise for a scene on rings). A concrete coupled solution
+      that still has a failed step is solved again, whole, with the rounds as a
+      fallback and, under tangential load control, a root search over the
+      displacement
       (`robust_solver`), compiled only then; under `jit`, `vmap` or `grad` there is
       no second solve (the flags, or `throw`, report the failure).
     - `rtol`, `max_steps`, `max_rounds`, `resync_every`, `precondition`: options of

@@ -362,6 +362,68 @@ def test_jc_solve_runs_the_rings_when_asked():
     np.testing.assert_allclose(traced, rings.approach, rtol=1e-10)
 
 
+def test_jc_solve_runs_the_rings_by_default_where_the_scene_allows():
+    """With no `solver` and no `operator`, `jc.solve` runs a frictionless scene with an
+    axisymmetric indenter on a non-periodic grid on rings: the same answer as
+    `solver=jc.RingPolonskyKeer()` (`rtol`, `max_steps`, `precondition` passed on),
+    in float32 too, and `jc.sweep` likewise. Anything else runs on the grid: a grid
+    solver or an `operator` given, a tangential solve, a periodic grid, a surface or
+    a pyramid. The grid's own options (`adjoint`, `max_rounds`, `resync_every`) are
+    refused on rings by name, never ignored."""
+    material = jc.Zener(1.0, 0.5, 0.5, NU)
+    times = jnp.linspace(0.0, 1.0, 4)
+    grid = jc.Grid((16, 16), 1.2)
+    load = jc.Force(0.05 * (1 + times))
+    scene = jc.Scene(grid, jc.Sphere(R), material, times, load)
+    default = jc.solve(scene, rtol=1e-6, max_steps=50)
+    asked = jc.solve(scene, solver=jc.RingPolonskyKeer(rtol=1e-6, max_steps=50))
+    assert default.method == "rings"
+    np.testing.assert_array_equal(default.approach, asked.approach)
+    np.testing.assert_array_equal(default.pressure, asked.pressure)
+    cone = jc.Scene(grid, jc.Cone(1.2), material, times, jc.Displacement(0.02 * times))
+    assert jc.solve(cone).method == "rings"
+    single = jc.Scene(jc.Grid((16, 16), jnp.float32(1.2)), jc.Sphere(R), material,
+                      times, load)
+    low = jc.solve(single)
+    assert low.method == "rings" and low.approach.dtype == jnp.float32
+    np.testing.assert_allclose(low.approach, asked.approach, rtol=1e-4)
+    # The grid: asked for, or where the rings do not apply.
+    assert jc.solve(scene, solver=jc.Rounds()).method == "grid"
+    assert jc.solve(scene, operator=jc.HalfSpace(grid)).method == "grid"
+    x, y = grid.coordinates()
+    not_on_rings = [
+        jc.Scene(grid, jc.Sphere(R), material, times, load,
+                 x=jc.Force(0.1 * load.values(times)), friction=0.3),
+        jc.Scene(grid, jc.Sphere(R), material, times, load, friction=0.3,
+                 coupling="full"),
+        jc.Scene(jc.Grid((16, 16), 1.2, periodic=True), jc.Sphere(R), material, times,
+                 load),
+        jc.Scene(grid, jc.Surface((x * x + y * y) / (2 * R)), material, times, load),
+        jc.Scene(grid, jc.Pyramid(1.2), material, times, jc.Displacement(0.02 * times)),
+    ]
+    for other in not_on_rings:
+        assert jc.solve(other, throw=False).method == "grid"
+    for option in (dict(adjoint=jc.ImplicitAdjoint()), dict(max_rounds=3),
+                   dict(resync_every=5)):
+        (name,) = option
+        with pytest.raises(TypeError, match=f"{name} configures the grid solver.*"
+                                            r"solver=jc\.Rounds\(\)"):
+            jc.solve(scene, **option)
+    with pytest.raises(TypeError, match="has its own implicit derivatives"):
+        jc.solve(scene, solver=jc.RingPolonskyKeer(), adjoint=jc.ImplicitAdjoint())
+    # jc.sweep: on rings, each member as jc.solve solves it; a grid solver keeps the
+    # grid.
+    forces = jnp.array([0.04, 0.06])
+    swept = jc.sweep(scene, normal=jc.Force(forces))
+    assert swept.method == "rings"
+    for k, w in enumerate((0.04, 0.06)):
+        one = jc.solve(jc.Scene(grid, jc.Sphere(R), material, times, jc.Force(w)))
+        np.testing.assert_allclose(swept.approach[k], one.approach, rtol=1e-10)
+    on_grid = jc.sweep(scene, normal=jc.Force(forces),
+                       solve_options={"solver": jc.Rounds()})
+    assert on_grid.method == "grid"
+
+
 @pytest.mark.slow
 def test_annular_contact_equals_grid():
     """A tip of revolution with a central dip (a ring-shaped ridge at r = 0.2): the
