@@ -310,9 +310,8 @@ def solve(
       the grid's only, raise for a scene on rings). A concrete coupled solution
       that still has a failed step is solved again, whole, with the rounds as a
       fallback and, under tangential load control, a root search over the
-      displacement
-      (`robust_solver`), compiled only then; under `jit`, `vmap` or `grad` there is
-      no second solve (the flags, or `throw`, report the failure).
+      displacement (`robust_solver`), compiled only then; under `jit`, `vmap` or
+      `grad` there is no second solve (the flags, or `throw`, report the failure).
     - `rtol`, `max_steps`, `max_rounds`, `resync_every`, `precondition`: options of
       the default solver (only without `solver`; a solver object carries its own):
       relative tolerance of every contact solve (`None`: `1e-8` in float64, `1e-5` in
