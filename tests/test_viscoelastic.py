@@ -5,6 +5,10 @@ observed order of both time schemes, and the equivalence of the history paths.
 Every test states a physical or numerical fact and its tolerance; the numbers measured
 when the tolerances were set are quoted next to them (float64, rtol 1e-8).
 
+These validate the grid solver (the paper's method): a frictionless scene passes
+`solver=jc.Rounds()`, since `jc.solve` would run it on rings (their validation:
+`test_rings.py`).
+
 Units and conversions (docs/conventions.md): moduli are TRUE shear moduli. The
 paper's tables list twice the shear modulus (its a0 and p0 come out only with
 E* = G_paper / (1 - nu)), so every paper value is halved here:
@@ -320,7 +324,7 @@ def zener_case(ratio, scheme):
     scene = jc.Scene(
         grid, jc.Sphere(T2_R), zener(ratio=ratio), times, normal=jc.Force(T2_W)
     )
-    sol = as_np(jc.solve(scene, scheme=scheme))
+    sol = as_np(jc.solve(scene, solver=jc.Rounds(), scheme=scheme))
     ref = jc.LeeRadok(
         T2_R, T2_NU, zener(ratio=ratio), lambda t: T2_W * (t >= 0), samples=1000
     )
@@ -403,7 +407,7 @@ def test_step_displacement_relaxes_force_like_relaxation_modulus(name, scheme):
     scene = jc.Scene(
         grid, jc.Sphere(T2_R), material, times, normal=jc.Displacement(delta)
     )
-    sol = as_np(jc.solve(scene, scheme=scheme))
+    sol = as_np(jc.solve(scene, solver=jc.Rounds(), scheme=scheme))
     check_converged(sol)
     np.testing.assert_allclose(sol.approach, delta, rtol=1e-12)
     assert (sol.contact == sol.contact[0]).all()
@@ -585,7 +589,8 @@ def pmma_case(scheme):
         times,
         normal=jc.Force(lambda t: 10 * t - 20 * (t - 10) * (t > 10)),
     )
-    return grid, np.asarray(times), as_np(jc.solve(scene, scheme=scheme))
+    return grid, np.asarray(times), as_np(jc.solve(scene, solver=jc.Rounds(),
+                                                   scheme=scheme))
 
 
 def test_ting_reference_loading_branch_is_lee_radok():
@@ -905,6 +910,7 @@ def _order_run(n, nt, scheme):
     load = jc.Force(lambda t: T2_W * jnp.sin(jnp.pi * t / (2 * t_end)))
     sol = jc.solve(
         jc.Scene(grid, jc.Sphere(T2_R), zener(ratio=4), times, normal=load),
+        solver=jc.Rounds(),
         scheme=scheme,
         history="recursive",
     )
@@ -969,8 +975,8 @@ def test_recursive_and_direct_history_agree_through_full_solves():
         times,
         normal=jc.Force(lambda t: T2_W * jnp.sin(jnp.pi * t / (4 * T2_TAU))),
     )
-    rec = as_np(jc.solve(scene, history="recursive"))
-    direct = as_np(jc.solve(scene, history="direct"))
+    rec = as_np(jc.solve(scene, solver=jc.Rounds(), history="recursive"))
+    direct = as_np(jc.solve(scene, solver=jc.Rounds(), history="direct"))
     check_converged(rec)
     check_converged(direct)
     assert abs(rec.approach[-1] / rec.approach[1] - 1) > 0.5  # strong creep
@@ -998,7 +1004,8 @@ def test_zener_without_creep_equals_elastic():
     times = jnp.linspace(0.0, 2 * T2_TAU, 11)
     load = jc.Force(lambda t: T2_W * jnp.sin(jnp.pi * t / (4 * T2_TAU)))
     sols = [
-        as_np(jc.solve(jc.Scene(grid, jc.Sphere(T2_R), m, times, normal=load)))
+        as_np(jc.solve(jc.Scene(grid, jc.Sphere(T2_R), m, times, normal=load),
+                       solver=jc.Rounds()))
         for m in (
             jc.Elastic(T2_MU_INF, T2_NU),
             jc.Zener(T2_MU_INF, T2_MU_INF, T2_TAU, T2_NU),
