@@ -118,3 +118,11 @@ def edge_ring(contact: Bool[Array, "... nx ny"]) -> Bool[Array, "..."]:
     rows = jnp.any(contact[..., 0, :], axis=-1) | jnp.any(contact[..., -1, :], axis=-1)
     cols = jnp.any(contact[..., :, 0], axis=-1) | jnp.any(contact[..., :, -1], axis=-1)
     return rows | cols
+
+
+def stick_ratio(contact: Bool[Array, "... nx ny"], stick: Bool[Array, "... nx ny"]
+                ) -> Float[Array, "..."]:
+    """Stick cells / contact cells over the last two axes (0 with no contact)."""
+    n_contact = jnp.sum(contact, axis=(-2, -1))
+    n_stick = jnp.sum(stick, axis=(-2, -1))
+    return jnp.where(n_contact > 0, n_stick / jnp.maximum(n_contact, 1), 0.0)

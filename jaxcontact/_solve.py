@@ -14,7 +14,7 @@ from ._history import check_time_options, history_for, worst_time_step
 from ._loading import Force
 from ._operator import HalfSpace
 from ._scene import Scene, check_targets, normal_targets, tangential_targets
-from ._solution import RESULTS, Solution
+from ._solution import RESULTS, Solution, stick_ratio
 from ._solve_rings import axisymmetric_support, solve_axisymmetric
 from ._solver.base import AbstractStepSolver, StepGuess, StepProblem
 from ._solver.fallback import Fallback
@@ -171,9 +171,6 @@ def _solve(scene: Scene, operator: HalfSpace, controls: _Controls,
     shear = jnp.zeros((nt, 2, nx, ny), dtype).at[:, :nd].set(res.shear)
     delta_t = jnp.zeros((nt, 2), dtype).at[:, :nd].set(res.delta_t)
     contact = res.pressure > 0
-    n_contact = jnp.sum(contact, axis=(1, 2))
-    n_stick = jnp.sum(res.stick, axis=(1, 2))
-    stick_ratio = jnp.where(n_contact > 0, n_stick / jnp.maximum(n_contact, 1), 0.0)
     sol = Solution(
         times=times,
         pressure=res.pressure,
@@ -184,7 +181,7 @@ def _solve(scene: Scene, operator: HalfSpace, controls: _Controls,
         approach=res.approach,
         tangential_force=area * jnp.sum(shear, axis=(2, 3)),
         tangential_displacement=delta_t,
-        stick_ratio=stick_ratio.astype(dtype),
+        stick_ratio=stick_ratio(contact, res.stick).astype(dtype),
         # No friction: no tangential traction, nothing slides (as for a concrete zero,
         # which solves no tangential step, when `friction` is traced).
         sliding=res.sliding & (nd > 0) & (friction > 0),
@@ -237,10 +234,6 @@ def _ring_solver(scene: Scene, solver, operator, adjoint, options: dict
     scene's, configured by `rtol`, `max_steps` and `precondition` in `options`.
     An `operator` selects the grid; what configures the grid only (`adjoint`,
     `max_rounds`, `resync_every`) is refused on rings rather than ignored."""
-    grid_only = [name for name, value in (("adjoint", adjoint),
-                                          ("max_rounds", options["max_rounds"]),
-                                          ("resync_every", options["resync_every"]))
-                 if value is not None]
     if isinstance(solver, RingPolonskyKeer):
         why = axisymmetric_support(scene)
         if why is not None:
@@ -257,6 +250,10 @@ def _ring_solver(scene: Scene, solver, operator, adjoint, options: dict
         return None
     if axisymmetric_support(scene) is not None:
         return None
+    grid_only = [name for name, value in (("adjoint", adjoint),
+                                          ("max_rounds", options["max_rounds"]),
+                                          ("resync_every", options["resync_every"]))
+                 if value is not None]
     if grid_only:
         raise TypeError(
             f"{', '.join(grid_only)} configure{'s' if len(grid_only) == 1 else ''} "

@@ -23,7 +23,7 @@ from ._indenter import AbstractAxisymmetricIndenter
 from ._loading import Force
 from ._ring_operator import RingOperator, rings_to_grid
 from ._scene import Scene, check_targets, normal_targets
-from ._solution import RESULTS, Solution
+from ._solution import RESULTS, Solution, stick_ratio
 from ._solver.base import StepGuess
 from ._solver.rings import RingPolonskyKeer, RingProblem, ring_step
 
@@ -83,9 +83,6 @@ class RingSolution(eqx.Module):
         nt = self.times.shape[0]
         contact = pressure > 0
         stick = contact & (jnp.asarray(friction) > 0)
-        n_contact = jnp.sum(contact, axis=(1, 2))
-        stick_ratio = jnp.where(n_contact > 0, jnp.sum(stick, axis=(1, 2))
-                                / jnp.maximum(n_contact, 1), 0.0)
         return Solution(
             times=self.times, pressure=pressure,
             shear=jnp.zeros((nt, 2) + grid.shape, dtype), contact=contact,
@@ -93,7 +90,8 @@ class RingSolution(eqx.Module):
             normal_force=self.normal_force,
             approach=self.approach, tangential_force=jnp.zeros((nt, 2), dtype),
             tangential_displacement=jnp.zeros((nt, 2), dtype),
-            stick_ratio=stick_ratio.astype(dtype), sliding=jnp.zeros((nt,), bool),
+            stick_ratio=stick_ratio(contact, stick).astype(dtype),
+            sliding=jnp.zeros((nt,), bool),
             converged=self.converged, iterations=self.iterations,
             rounds=jnp.ones((nt,), jnp.int32), residual=self.residual,
             result=self.result, fallbacks=jnp.zeros((nt,), jnp.int32),
