@@ -8,7 +8,9 @@ loads the compiled program from disk instead. The command line turns it on by de
 scripts call `jc.enable_compilation_cache()` once, before their first solve.
 
 A program that calls back into Python (`jc.solve(..., progress=...)`, or run-time
-checks of traced inputs under `jit`) is never written to the cache (a JAX rule).
+checks of traced inputs under `jit`) is never written to the cache (a JAX rule). A
+fit traces its model without those checks (its material is positive by construction),
+so `jaxcontact fit` keeps its programs.
 """
 
 import os

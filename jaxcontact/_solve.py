@@ -427,7 +427,8 @@ def solve(
     # A failed run-time check (traced bad input, or a step that did not converge with
     # `throw`) raises a ValueError whose first line is its message.
     with _validate.clear_runtime_errors():
-        runtime_checks = not check_targets(scene)
+        runtime_checks = (not check_targets(scene)
+                          and _validate.checks_traced_inputs())
         args = (scene, operator, controls, solver, adjoint, throw, history, scheme,
                 progress, runtime_checks)
         sol = _solve(*args)

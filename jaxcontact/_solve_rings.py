@@ -251,7 +251,8 @@ def solve_axisymmetric(
         raise TypeError(f"solver must be a RingPolonskyKeer, got {solver!r}")
     check_time_options(throw, history, scheme)
     with _validate.clear_runtime_errors():
-        runtime_checks = not check_targets(scene)
+        runtime_checks = (not check_targets(scene)
+                          and _validate.checks_traced_inputs())
         sol = _solve_rings(scene, operator, solver, history, scheme, runtime_checks,
                            progress)
     return _raise_on_failure(sol) if throw else sol

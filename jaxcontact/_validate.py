@@ -7,6 +7,7 @@ time (see `EQX_ON_ERROR`).
 """
 
 import contextlib
+import contextvars
 import re
 
 import equinox as eqx
@@ -56,6 +57,29 @@ def clear_runtime_errors():
         ) from None
 
 
+_TRUSTED = contextvars.ContextVar("jaxcontact_trusted_inputs", default=False)
+
+
+@contextlib.contextmanager
+def trusted_inputs():
+    """Inside this context, traced inputs are not checked at run time: for a caller
+    whose traced values are valid by construction (a fit's material from its
+    coordinates, positive by its parametrisation; a scene checked concretely before
+    tracing). Concrete values are still checked. Its programs then hold no
+    `eqx.error_if` (a host callback), so JAX's persistent compilation cache can store
+    them: a program that calls back into Python is never written to it."""
+    token = _TRUSTED.set(True)
+    try:
+        yield
+    finally:
+        _TRUSTED.reset(token)
+
+
+def checks_traced_inputs() -> bool:
+    """Whether traced inputs get run-time checks here (not inside `trusted_inputs`)."""
+    return not _TRUSTED.get()
+
+
 def is_traced(x) -> bool:
     """True if any leaf of `x` is a JAX tracer (we are inside a transformation)."""
     return any(isinstance(leaf, jax.core.Tracer)
@@ -97,6 +121,8 @@ def _check(name: str, value: jax.Array, bad, what: str) -> jax.Array:
     mask = bad(value)
     # Inside `jit` even a concrete array's comparison is staged: check the result.
     if is_traced(value) or is_traced(mask):
+        if not checks_traced_inputs():
+            return value
         return eqx.error_if(value, mask, f"{name} must be {what}")
     bad_mask = np.asarray(mask)
     if bad_mask.any():

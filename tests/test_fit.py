@@ -29,6 +29,7 @@ import textwrap
 import time
 
 import jax
+import jax.extend
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -588,6 +589,51 @@ def test_fit_recovers_pmma_through_the_contact_model_64x64x40():
     """The issue's scene (2 terms, 64^2 x 40 steps); its time is measured by
     benchmarks/fit.py, not asserted here."""
     check_full_model_fit(64, 40)
+
+
+def _primitives(jaxpr):
+    """The names of every primitive of a jaxpr, its inner jaxprs included."""
+    jaxpr = getattr(jaxpr, "jaxpr", jaxpr)  # a ClosedJaxpr's own
+    names = set()
+    for eqn in jaxpr.eqns:
+        names.add(eqn.primitive.name)
+        for sub in jax.extend.core.jaxprs_in_params(eqn.params):
+            names |= _primitives(sub)
+    return names
+
+
+@pytest.mark.parametrize("solver", ["rings", "grid"])
+def test_a_fits_programs_call_nothing_back_so_the_cache_can_keep_them(solver):
+    """The fit's model, objective and LM programs hold no host callback (a traced
+    input check, `eqx.error_if`), which JAX never writes to the persistent
+    compilation cache: the material is positive by its parametrisation and the scene
+    is checked before the fit. The same model with a traced material built by the
+    caller keeps its checks (the tracing of both is compared)."""
+    times = jnp.linspace(0.0, 2.0, 6)
+    depth = jnp.minimum(times / 0.5, 1.0) * 1e-6
+    template = jc.Scene(jc.Grid((8, 8), 10e-6), jc.Sphere(5e-6),
+                        jc.Prony(1e3, jnp.array([2e3]), jnp.array([0.5]), 0.5), times,
+                        normal=jc.Displacement(depth))
+    data = jc.IndentationData(times, force=1e-9 * (1 + times), depth=depth)
+    problem = _fit.fit.set_up(
+        data, template, 1, jc.FitOptions(solver=solver), init=template.material,
+        poisson=None, fit_poisson=False, fixed={}, bounds={}, weights=None,
+        noise_std=None, model=None)
+    args = problem.ev.args
+    programs = {
+        "objective": jax.make_jaxpr(lambda th: _fit.model._objective(th, *args)),
+        "lm": jax.make_jaxpr(lambda th: _lm._lm_solve(th, args, 1e-8, 1e-9, 3)),
+    }
+    for name, make in programs.items():
+        found = {p for p in _primitives(make(problem.theta)) if "callback" in p}
+        assert not found, (name, found)
+    ctx, refs, _, _, model, fit_poisson = args
+
+    def checked(theta):  # the caller's own traced material: checked at run time
+        return model(_param.to_material(theta, refs, fit_poisson), ctx)
+
+    assert any("callback" in p
+               for p in _primitives(jax.make_jaxpr(checked)(problem.theta)))
 
 
 def test_check_grid_reports_the_discretisation_error():

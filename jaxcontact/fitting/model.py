@@ -20,6 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.flatten_util import ravel_pytree
 
+from .. import _validate
 from .._solve import operator_for, solve
 from .._sweep import traced_directions
 from .parametrisation import to_material
@@ -65,9 +66,19 @@ def scene_model(scene, kind: str, solve_options: dict | None):
     return model, (scene, operator_for(scene, traced_directions(scene)))
 
 
+def model_curve(theta, ctx, refs, model, fit_poisson):
+    """`((nt,) curve, (nt,) converged)`: the model at the fit's coordinates `theta`.
+    Traced without run-time input checks (`_validate.trusted_inputs`): the material is
+    positive by its parametrisation and the scene was checked before the fit, and a
+    program without checks (host callbacks) can be kept in the persistent
+    compilation cache, so a second `jaxcontact fit` process loads it."""
+    with _validate.trusted_inputs():
+        return model(to_material(theta, refs, fit_poisson), ctx)
+
+
 def _loss(theta, ctx, refs, target, scale, model, fit_poisson):
     """`(loss, (curve, converged))` with `loss = mean(((curve - target) / scale)^2)`."""
-    curve, ok = model(to_material(theta, refs, fit_poisson), ctx)
+    curve, ok = model_curve(theta, ctx, refs, model, fit_poisson)
     return jnp.mean(((curve - target) / scale) ** 2), (curve, ok)
 
 
@@ -88,7 +99,7 @@ def relative_residual(theta, args):
     """Relative residual `(curve - target) / scale` (the least-squares form of
     `_objective`'s loss: `loss = mean(residual^2)`)."""
     ctx, refs, target, scale, model, fit_poisson = args
-    curve, _ = model(to_material(theta, refs, fit_poisson), ctx)
+    curve, _ = model_curve(theta, ctx, refs, model, fit_poisson)
     return (curve - target) / scale
 
 
