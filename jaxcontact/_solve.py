@@ -431,7 +431,8 @@ def solve(
                           and _validate.checks_traced_inputs())
         args = (scene, operator, controls, solver, adjoint, throw, history, scheme,
                 progress, runtime_checks)
-        sol = _solve(*args)
+        with _validate.trusted_inputs(False):  # the compiled solve checks as always
+            sol = _solve(*args)
         if not _validate.is_traced(sol):
             jax.block_until_ready(sol)
             if retry is not None and not bool(np.all(sol.converged)):

@@ -253,6 +253,7 @@ def solve_axisymmetric(
     with _validate.clear_runtime_errors():
         runtime_checks = (not check_targets(scene)
                           and _validate.checks_traced_inputs())
-        sol = _solve_rings(scene, operator, solver, history, scheme, runtime_checks,
-                           progress)
+        with _validate.trusted_inputs(False):  # the compiled solve checks as always
+            sol = _solve_rings(scene, operator, solver, history, scheme,
+                               runtime_checks, progress)
     return _raise_on_failure(sol) if throw else sol

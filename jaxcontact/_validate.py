@@ -61,14 +61,18 @@ _TRUSTED = contextvars.ContextVar("jaxcontact_trusted_inputs", default=False)
 
 
 @contextlib.contextmanager
-def trusted_inputs():
+def trusted_inputs(trusted: bool = True):
     """Inside this context, traced inputs are not checked at run time: for a caller
     whose traced values are valid by construction (a fit's material from its
     coordinates, positive by its parametrisation; a scene checked concretely before
     tracing). Concrete values are still checked. Its programs then hold no
     `eqx.error_if` (a host callback), so JAX's persistent compilation cache can store
-    them: a program that calls back into Python is never written to it."""
-    token = _TRUSTED.set(True)
+    them: a program that calls back into Python is never written to it.
+
+    A jitted function's trace is cached without this context in its key: `jc.solve`
+    turns its scene checks off by a static argument and traces its own program with
+    `trusted_inputs(False)`, so no user's call reuses an unchecked trace."""
+    token = _TRUSTED.set(trusted)
     try:
         yield
     finally:
