@@ -425,17 +425,18 @@ def solve(
     if operator is None:
         operator = operator_for(scene, nd)
     # A failed run-time check (traced bad input, or a step that did not converge with
-    # `throw`) raises a ValueError whose first line is its message.
+    # `throw`) raises a ValueError whose first line is its message. The compiled solve
+    # is traced with its checks (`trusted_inputs(False)`): a caller's trusted context
+    # reaches it only as the static `runtime_checks`.
     with _validate.clear_runtime_errors():
-        runtime_checks = (not check_targets(scene)
-                          and _validate.checks_traced_inputs())
+        runtime_checks = not check_targets(scene) and _validate.checks_traced_inputs()
         args = (scene, operator, controls, solver, adjoint, throw, history, scheme,
                 progress, runtime_checks)
-        with _validate.trusted_inputs(False):  # the compiled solve checks as always
+        with _validate.trusted_inputs(False):
             sol = _solve(*args)
-        if not _validate.is_traced(sol):
-            jax.block_until_ready(sol)
-            if retry is not None and not bool(np.all(sol.converged)):
-                # Compiled only now: the root search doubles the compile time.
-                sol = jax.block_until_ready(_solve(*args[:3], retry, *args[4:]))
+            if not _validate.is_traced(sol):
+                jax.block_until_ready(sol)
+                if retry is not None and not bool(np.all(sol.converged)):
+                    # Compiled only now: the root search doubles the compile time.
+                    sol = jax.block_until_ready(_solve(*args[:3], retry, *args[4:]))
     return _raise_on_failure(sol) if throw else sol

@@ -251,9 +251,9 @@ def solve_axisymmetric(
         raise TypeError(f"solver must be a RingPolonskyKeer, got {solver!r}")
     check_time_options(throw, history, scheme)
     with _validate.clear_runtime_errors():
-        runtime_checks = (not check_targets(scene)
-                          and _validate.checks_traced_inputs())
-        with _validate.trusted_inputs(False):  # the compiled solve checks as always
+        runtime_checks = not check_targets(scene) and _validate.checks_traced_inputs()
+        # Traced with its checks; a caller's trusted context arrives as runtime_checks.
+        with _validate.trusted_inputs(False):
             sol = _solve_rings(scene, operator, solver, history, scheme,
                                runtime_checks, progress)
     return _raise_on_failure(sol) if throw else sol

@@ -84,6 +84,14 @@ def checks_traced_inputs() -> bool:
     return not _TRUSTED.get()
 
 
+def runtime_check(value, bad, message: str):
+    """`eqx.error_if(value, bad, message)`: the run-time check of a traced input, or
+    `value` unchanged inside `trusted_inputs`."""
+    if not checks_traced_inputs():
+        return value
+    return eqx.error_if(value, bad, message)
+
+
 def is_traced(x) -> bool:
     """True if any leaf of `x` is a JAX tracer (we are inside a transformation)."""
     return any(isinstance(leaf, jax.core.Tracer)
@@ -125,9 +133,7 @@ def _check(name: str, value: jax.Array, bad, what: str) -> jax.Array:
     mask = bad(value)
     # Inside `jit` even a concrete array's comparison is staged: check the result.
     if is_traced(value) or is_traced(mask):
-        if not checks_traced_inputs():
-            return value
-        return eqx.error_if(value, mask, f"{name} must be {what}")
+        return runtime_check(value, mask, f"{name} must be {what}")
     bad_mask = np.asarray(mask)
     if bad_mask.any():
         shown = np.asarray(value)

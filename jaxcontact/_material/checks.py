@@ -5,7 +5,6 @@ float dtype."""
 
 import contextlib
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -36,9 +35,8 @@ def require(name: str, value, inputs, ok, what: str, got) -> jax.Array:
     used.
     """
     if _validate.is_traced(inputs):
-        if not _validate.checks_traced_inputs():
-            return value
-        return eqx.error_if(value, ~jnp.all(ok(*inputs)), f"{name} must be {what}")
+        return _validate.runtime_check(value, ~jnp.all(ok(*inputs)),
+                                       f"{name} must be {what}")
     with jax.ensure_compile_time_eval():
         good = bool(np.all(np.asarray(ok(*inputs))))
     if not good:
